@@ -1,0 +1,3 @@
+from dice_sweep.cli import main
+
+main()
