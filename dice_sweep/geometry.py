@@ -1,0 +1,226 @@
+"""Geometry of a regular n-gon die (Smith 2014, section II and Fig. 7).
+
+Conventions, shared with the kernel and the plots:
+
+* corner ``k`` (``k = 0 .. n-1``) sits at angle ``phi + 2 pi k / n`` from the centre, at the
+  circumradius ``R``;
+* side ``k`` joins corners ``k`` and ``k + 1`` (mod n), so side 0 lies between the corners at
+  ``phi`` and ``phi + 2 pi / n`` and the sides are numbered counterclockwise (paper, Fig. 7).
+
+All lengths are in metres, angles in radians. Functions taking ``y`` or ``phi`` accept numpy
+arrays and broadcast them.
+"""
+
+import numpy as np
+
+__all__ = [
+    "apothem",
+    "side_length",
+    "inertia_ratio",
+    "moment_of_inertia",
+    "corner_angles",
+    "corners",
+    "support",
+    "lowest_corner_height",
+    "side_below",
+]
+
+DOWN = -0.5 * np.pi  # angle of the vertical ray pointing down from the centre, rad
+
+
+def _central_angle(sides):
+    """Angle 2 pi / n between neighbouring corners, seen from the centre (rad)."""
+    return 2.0 * np.pi / sides
+
+
+def apothem(sides, circumradius):
+    """Distance from the centre to the middle of a side, A = R cos(pi/n) (paper eq. 1).
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n (>= 3).
+    circumradius : float
+        Circumradius R, m.
+
+    Returns
+    -------
+    float
+        Apothem A, m.
+    """
+    return circumradius * np.cos(np.pi / sides)
+
+
+def side_length(sides, circumradius):
+    """Length of one side, S = 2 R sin(pi/n) (paper eq. 2).
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n (>= 3).
+    circumradius : float
+        Circumradius R, m.
+
+    Returns
+    -------
+    float
+        Side length S, m.
+    """
+    return 2.0 * circumradius * np.sin(np.pi / sides)
+
+
+def inertia_ratio(sides):
+    """Dimensionless moment of inertia alpha = I / (M R^2) of a uniform n-gon plate.
+
+    alpha = sin^2(pi/n) / 6 + cos^2(pi/n) / 2 (paper eq. 25): 1/4 for a triangle, 1/3 for a
+    square, tending to 1/2 (a disc) as n grows.
+
+    Parameters
+    ----------
+    sides : int or array_like
+        Number of sides n (>= 3).
+
+    Returns
+    -------
+    float or ndarray
+        alpha, dimensionless.
+    """
+    half_angle = np.pi / np.asarray(sides, dtype=float)
+    return np.sin(half_angle) ** 2 / 6.0 + np.cos(half_angle) ** 2 / 2.0
+
+
+def moment_of_inertia(sides, circumradius, mass):
+    """Moment of inertia about the centre, I = alpha M R^2 (paper eq. 25).
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n (>= 3).
+    circumradius : float
+        Circumradius R, m.
+    mass : float
+        Mass M, kg.
+
+    Returns
+    -------
+    float
+        I, kg m^2.
+    """
+    return inertia_ratio(sides) * mass * circumradius**2
+
+
+def corner_angles(sides, phi):
+    """Angles of the corners from the centre: corner k at phi + 2 pi k / n.
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n (>= 3).
+    phi : float
+        Orientation of the die (the angle of corner 0), rad.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        Corner angles, rad (not reduced modulo 2 pi).
+    """
+    return phi + _central_angle(sides) * np.arange(sides)
+
+
+def corners(sides, circumradius, x, y, phi):
+    """Positions of the corners of a die centred at (x, y) with orientation phi.
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n (>= 3).
+    circumradius : float
+        Circumradius R, m.
+    x, y : float
+        Position of the centre, m.
+    phi : float
+        Orientation (angle of corner 0), rad.
+
+    Returns
+    -------
+    ndarray, shape (n, 2)
+        Row k holds (x, y) of corner k, m.
+    """
+    angles = corner_angles(sides, phi)
+    return np.column_stack((x + circumradius * np.cos(angles), y + circumradius * np.sin(angles)))
+
+
+def support(sides, circumradius, phi, direction):
+    """How far the die reaches from its centre along a direction (its support function).
+
+    This is the largest projection of a corner offset onto the unit vector at angle
+    ``direction``: ``R cos(d)`` with ``d`` the angle from that direction to the nearest corner.
+    The die's lowest point is ``y - support(..., -pi/2)``, its right-most ``x + support(..., 0)``.
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n (>= 3).
+    circumradius : float
+        Circumradius R, m.
+    phi : float or array_like
+        Orientation (angle of corner 0), rad.
+    direction : float or array_like
+        Angle of the direction, rad (0: +x, pi/2: +y).
+
+    Returns
+    -------
+    float or ndarray
+        Reach along the direction, m, between the apothem and R; broadcast over phi, direction.
+    """
+    spacing = _central_angle(sides)
+    offset = np.mod(np.asarray(direction) - np.asarray(phi), spacing)
+    nearest = np.minimum(offset, spacing - offset)
+    return circumradius * np.cos(nearest)
+
+
+def lowest_corner_height(sides, circumradius, y, phi):
+    """Height of the lowest corner of a die whose centre is at height y.
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n (>= 3).
+    circumradius : float
+        Circumradius R, m.
+    y : float or array_like
+        Height of the centre above the table, m.
+    phi : float or array_like
+        Orientation (angle of corner 0), rad.
+
+    Returns
+    -------
+    float or ndarray
+        Height of the lowest corner, m (negative: inside the table); broadcast over y, phi.
+    """
+    return np.asarray(y) - support(sides, circumradius, phi, DOWN)
+
+
+def side_below(sides, phi):
+    """Index of the side crossed by the vertical ray pointing down from the centre.
+
+    Side k spans the corner angles [phi + 2 pi k / n, phi + 2 pi (k+1) / n). This is the side
+    the die rests on once it can no longer pass over a corner. Turning the die by +2 pi / n
+    lowers the index by one (mod n): the ray then meets the side before.
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n (>= 3).
+    phi : float or array_like
+        Orientation (angle of corner 0), rad.
+
+    Returns
+    -------
+    int or ndarray of int
+        Side index in 0 .. n-1.
+    """
+    turns = np.mod(DOWN - np.asarray(phi, dtype=float), 2.0 * np.pi) / _central_angle(sides)
+    # mod and rounding can land exactly on n at the last corner: wrap it to side 0
+    index = np.floor(turns).astype(np.int64) % sides
+    return index if index.ndim else int(index)
