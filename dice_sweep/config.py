@@ -1,0 +1,589 @@
+"""TOML configs -> frozen dataclasses, with validation, ``--set`` overrides and a TOML writer.
+
+Every value is in SI units. The defaults are Table I of Smith 2014 (phi0 = 0, vx0 = 0,
+beta_tangential = -0.35, beta_normal = 0.2, dt = 0.001 s, R = 1.9/sqrt(2) cm):
+
+.. code-block:: toml
+
+    [die]        # sides = 4, circumradius = 0.013435 (m)
+    [contact]    # model = "paper", beta_normal = 0.2, beta_tangential = -0.35
+    [walls]      # separation = 0.20 (m); no [walls] section: no walls
+    [initial]    # x0 = 0, y0 = 0.1 (m), phi0 = 0 (rad), vx0 = vy0 = 0 (m/s), omega0 = 10 (rad/s)
+    [world]      # g = 9.81 (m/s^2)
+    [integrator] # method = "event" | "fixed_step", dt = 0.001 (s), t_max = 30 (s), max_events
+    [grid]       # x = { param, min, max, num }, y = { ... }; no [grid]: a single roll
+
+Everything is checked at load, before any work; each problem is a :class:`ConfigError` whose
+text is one line naming the file, the dotted key and the allowed range or values.
+"""
+
+import dataclasses
+import difflib
+import json
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dice_sweep import geometry
+from dice_sweep.errors import ConfigError
+
+__all__ = [
+    "Die",
+    "Contact",
+    "Walls",
+    "Initial",
+    "World",
+    "Integrator",
+    "Axis",
+    "Grid",
+    "Config",
+    "CONTACT_MODELS",
+    "INTEGRATOR_METHODS",
+    "GRID_PARAMS",
+    "PARAM_UNITS",
+    "load_config",
+    "parse_config",
+    "config_to_toml",
+    "default_config",
+]
+
+CONTACT_MODELS = ("paper",)
+INTEGRATOR_METHODS = ("event", "fixed_step")
+GRID_PARAMS = ("y0", "omega0", "vx0", "vy0", "phi0", "x0")
+PARAM_UNITS = {"x0": "m", "y0": "m", "phi0": "rad", "vx0": "m/s", "vy0": "m/s", "omega0": "rad/s"}
+TABLE1_CIRCUMRADIUS = 0.019 / math.sqrt(2.0)  # m, Table I: 1.9/sqrt(2) cm
+MAX_SIDES = 1000
+MAX_GRID_NUM = 100_000  # cells per axis; keeps the start check's arrays (and sweeps) finite
+# a start whose corner reaches this far into a surface still counts as touching it, not inside
+TOUCH_TOLERANCE = 1e-12  # relative to the circumradius
+
+
+@dataclass(frozen=True)
+class Die:
+    """A regular n-gon plate: ``sides`` n (3..1000) and ``circumradius`` R (m)."""
+
+    sides: int
+    circumradius: float
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Contact law: ``model`` name, ``beta_normal`` in [0, 1], ``beta_tangential`` in [-1, 1]."""
+
+    model: str
+    beta_normal: float
+    beta_tangential: float
+
+
+@dataclass(frozen=True)
+class Walls:
+    """Vertical walls at x = -separation/2 and +separation/2 (m); ``separation`` None: no walls."""
+
+    separation: float | None
+
+
+@dataclass(frozen=True)
+class Initial:
+    """Initial state: centre (x0, y0) in m, angle phi0 in rad, (vx0, vy0) in m/s, omega0 in rad/s."""
+
+    x0: float
+    y0: float
+    phi0: float
+    vx0: float
+    vy0: float
+    omega0: float
+
+
+@dataclass(frozen=True)
+class World:
+    """Gravitational acceleration ``g`` (m/s^2)."""
+
+    g: float
+
+
+@dataclass(frozen=True)
+class Integrator:
+    """``method`` ("event" or "fixed_step"), step ``dt`` (s), time limit ``t_max`` (s), ``max_events``."""
+
+    method: str
+    dt: float
+    t_max: float
+    max_events: int
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept initial value: ``param`` from ``min`` to ``max`` (its SI unit) in ``num`` cells."""
+
+    param: str
+    min: float
+    max: float
+    num: int
+
+    def values(self):
+        """Cell-centre values ``min + (i + 0.5) (max - min) / num``, i = 0 .. num-1.
+
+        Returns
+        -------
+        ndarray, shape (num,)
+            The swept values, in the unit of ``param`` (see ``PARAM_UNITS``).
+        """
+        return self.min + (np.arange(self.num) + 0.5) * (self.max - self.min) / self.num
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A two-dimensional sweep: ``x`` (image columns) and ``y`` (image rows) axes."""
+
+    x: Axis
+    y: Axis
+
+
+@dataclass(frozen=True)
+class Config:
+    """A validated config. ``source`` (the file path or "<string>") takes no part in equality."""
+
+    die: Die
+    contact: Contact
+    walls: Walls
+    initial: Initial
+    world: World
+    integrator: Integrator
+    grid: Grid | None
+    source: str = field(default="<string>", compare=False)
+
+    def with_initial(self, **values):
+        """Return a copy with some initial values replaced, e.g. ``cfg.with_initial(omega0=20.0)``.
+
+        Parameters
+        ----------
+        **values : float
+            New values of fields of :class:`Initial` (SI units).
+
+        Returns
+        -------
+        Config
+            The copy (not validated again).
+        """
+        return dataclasses.replace(self, initial=dataclasses.replace(self.initial, **values))
+
+
+@dataclass(frozen=True)
+class _Spec:
+    """What one config key accepts: its Python type, default and allowed range or values."""
+
+    kind: type  # float, int or str
+    default: object = None  # None: the key is required
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False  # True: the value must be above ``low``, not equal to it
+    choices: tuple = ()
+    unit: str = ""
+
+
+def _positive(default, unit):
+    return _Spec(float, default, low=0.0, low_open=True, unit=unit)
+
+
+_SECTION_SPECS = {
+    "die": {
+        "sides": _Spec(int, 4, low=3, high=MAX_SIDES),
+        "circumradius": _positive(TABLE1_CIRCUMRADIUS, "m"),
+    },
+    "contact": {
+        "model": _Spec(str, "paper", choices=CONTACT_MODELS),
+        "beta_normal": _Spec(float, 0.2, low=0.0, high=1.0),
+        "beta_tangential": _Spec(float, -0.35, low=-1.0, high=1.0),
+    },
+    "walls": {"separation": _positive(0.20, "m")},
+    "initial": {
+        "x0": _Spec(float, 0.0, unit="m"),
+        "y0": _Spec(float, 0.1, unit="m"),
+        "phi0": _Spec(float, 0.0, unit="rad"),
+        "vx0": _Spec(float, 0.0, unit="m/s"),
+        "vy0": _Spec(float, 0.0, unit="m/s"),
+        "omega0": _Spec(float, 10.0, unit="rad/s"),
+    },
+    "world": {"g": _positive(9.81, "m/s^2")},
+    "integrator": {
+        "method": _Spec(str, "event", choices=INTEGRATOR_METHODS),
+        "dt": _positive(0.001, "s"),
+        "t_max": _positive(30.0, "s"),
+        "max_events": _Spec(int, 100_000, low=1),
+    },
+}
+_SECTION_CLASSES = {
+    "die": Die,
+    "contact": Contact,
+    "walls": Walls,
+    "initial": Initial,
+    "world": World,
+    "integrator": Integrator,
+}
+_AXIS_SPECS = {
+    "param": _Spec(str, choices=GRID_PARAMS),
+    "min": _Spec(float),
+    "max": _Spec(float),
+    "num": _Spec(int, low=1, high=MAX_GRID_NUM),
+}
+_GRID_AXES = ("x", "y")
+_SECTIONS = (*_SECTION_SPECS, "grid")
+_TYPE_NAMES = {bool: "a boolean", int: "an integer", float: "a float", str: "a string", list: "an array", dict: "a table"}
+
+
+def _children(parts):
+    """Names allowed below the dotted key ``parts`` (a tuple), or None if it is a leaf key."""
+    if not parts:
+        return _SECTIONS
+    if parts[0] == "grid":
+        return (_GRID_AXES, tuple(_AXIS_SPECS), None)[min(len(parts) - 1, 2)]
+    return tuple(_SECTION_SPECS[parts[0]]) if len(parts) == 1 else None
+
+
+def _key_text(name):
+    """A config key as it would be written in TOML (quoted when it is not a bare key)."""
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
+
+
+def _dotted(parts):
+    return ".".join(_key_text(part) for part in parts)
+
+
+def _fmt(number):
+    return "inf" if number == math.inf else "-inf" if number == -math.inf else f"{number:g}"
+
+
+def _unknown_name_message(name, allowed, what):
+    """``unknown key 'x'; did you mean 'y'? (allowed: ...)``, the suggestion only when close."""
+    message = f"unknown {what} {name!r}"
+    close = difflib.get_close_matches(name, allowed, n=1)
+    if close:
+        message += f"; did you mean {close[0]!r}?"
+    return f"{message} (allowed {what}s: {', '.join(allowed)})"
+
+
+class _Checker:
+    """Raises one-line :class:`ConfigError` s naming the file (and --set, if values came from it)."""
+
+    def __init__(self, source, overridden):
+        self.source = source
+        # the error may come from the command line rather than from the file: say so
+        self.label = f"{source} with --set" if overridden else source
+
+    def error(self, key, message):
+        """The ConfigError for a dotted key."""
+        return ConfigError(self.label, key, message)
+
+    def check_known(self, table, parts):
+        """Refuse names in ``table`` (found at dotted key ``parts``) that the schema does not know."""
+        allowed = _children(parts)
+        for name in table:
+            if name not in allowed:
+                raise self.error(_dotted((*parts, name)), _unknown_name_message(name, allowed, "key" if parts else "section"))
+
+    def table(self, parent, parts, required):
+        """The sub-table at ``parts`` (a section or grid axis), None when absent and optional."""
+        value = parent.get(parts[-1])
+        if value is None:
+            if required:
+                example = ", ".join(f"{name} = ..." for name in _children(parts))
+                raise self.error(_dotted(parts), f"missing; required as {parts[-1]} = {{ {example} }}")
+            return None
+        if not isinstance(value, dict):
+            raise self.error(_dotted(parts), f"expected a table, got {_type_name(value)} {value!r}")
+        self.check_known(value, parts)
+        return value
+
+    def values(self, table, parts, specs):
+        """Checked and converted values of every key of a section, defaults filled in."""
+        result = {}
+        for name, spec in specs.items():
+            key = _dotted((*parts, name))
+            if name not in table:
+                if spec.default is None:
+                    raise self.error(key, f"missing; required ({_allowed(spec)})")
+                result[name] = spec.default
+            else:
+                result[name] = self.value(table[name], key, spec)
+        return result
+
+    def value(self, value, key, spec):
+        """Check one value against its spec; return it converted (int -> float for float keys)."""
+        if spec.kind is str:
+            if not isinstance(value, str):
+                raise self.error(key, f"expected a string, got {_type_name(value)} {value!r} ({_allowed(spec)})")
+            if spec.choices and value not in spec.choices:
+                raise self.error(key, _unknown_name_message(value, spec.choices, "value"))
+            return value
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or (spec.kind is int and isinstance(value, float)):
+            expected = "an integer" if spec.kind is int else "a number"
+            raise self.error(key, f"expected {expected}, got {_type_name(value)} {value!r} ({_allowed(spec)})")
+        try:
+            value = spec.kind(value)
+        except OverflowError:  # an integer too large for a float
+            value = math.inf
+        if not math.isfinite(value):
+            raise self.error(key, f"{value!r} is not a finite number ({_allowed(spec)})")
+        below = value <= spec.low if spec.low_open else value < spec.low
+        if below or value > spec.high:
+            raise self.error(key, f"{value!r} is outside the {_allowed(spec)}")
+        return value
+
+
+def _type_name(value):
+    return _TYPE_NAMES.get(type(value), type(value).__name__)
+
+
+def _allowed(spec):
+    """The allowed range or values of a spec, for messages: ``allowed range [0, 1]``."""
+    if spec.choices:
+        return "allowed values: " + ", ".join(spec.choices)
+    if spec.kind is str:
+        return "allowed: a string"
+    interval = f"{'(' if spec.low_open or spec.low == -math.inf else '['}{_fmt(spec.low)}, {_fmt(spec.high)}"
+    interval += "]" if spec.high < math.inf else ")"
+    kind = ", an integer" if spec.kind is int else ""
+    return f"allowed range {interval}{' ' + spec.unit if spec.unit else ''}{kind}"
+
+
+def _parse_toml(text, source):
+    """Parse TOML text; a syntax error becomes a ConfigError naming the line."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        where = re.search(r"\(at line (\d+), column \d+\)$", str(error))
+        key = f"line {where.group(1)}" if where else "end of file"
+        raise ConfigError(source, key, f"TOML syntax error: {error}") from None
+
+
+def _parse_override_value(text):
+    """A ``--set`` value as a TOML value (0.3, 4, "event", [1, 2], true), else a bare string."""
+    try:
+        return tomllib.loads(f"value = {text}")["value"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _apply_overrides(raw, overrides):
+    """Apply ``section.key=value`` strings to the raw TOML dict, in place."""
+    for override in overrides:
+        dotted, equals, value_text = override.partition("=")
+        dotted = dotted.strip()
+        if not equals:
+            raise ConfigError("--set", dotted, f"expected section.key=value, got {override!r} (e.g. --set initial.omega0=20)")
+        parts = tuple(part.strip() for part in dotted.split("."))
+        for depth, name in enumerate(parts):
+            allowed = _children(parts[:depth])
+            if allowed is None:
+                raise ConfigError("--set", dotted, f"{_dotted(parts[:depth])} is a value, not a table (expected section.key=value)")
+            if name not in allowed:
+                raise ConfigError("--set", dotted, _unknown_name_message(name, allowed, "key" if depth else "section"))
+        if len(parts) < 2:
+            raise ConfigError("--set", dotted, "a whole section cannot be set; use section.key=value")
+        table = raw
+        for name in parts[:-1]:
+            table = table.setdefault(name, {})
+            if not isinstance(table, dict):
+                raise ConfigError("--set", dotted, f"{name!r} in the file is not a table")
+        table[parts[-1]] = _parse_override_value(value_text.strip())
+
+
+def _grid(raw_grid, checker):
+    """The [grid] section as a Grid (None if absent), axes checked."""
+    if raw_grid is None:
+        return None
+    axes = {}
+    for name in _GRID_AXES:
+        table = checker.table(raw_grid, ("grid", name), required=True)
+        values = checker.values(table, ("grid", name), _AXIS_SPECS)
+        if values["min"] >= values["max"]:
+            raise checker.error(f"grid.{name}.max", f"{values['max']!r} is not above min = {values['min']!r} (allowed range: max > min)")
+        axes[name] = Axis(**values)
+    if axes["x"].param == axes["y"].param:
+        others = [param for param in GRID_PARAMS if param != axes["x"].param]
+        raise checker.error("grid.y.param", f"{axes['y'].param!r} is already swept by grid.x (allowed values: {', '.join(others)})")
+    return Grid(**axes)
+
+
+def _start_values(initial, grid):
+    """For x0, y0, phi0: (dotted key, 1-D array of every start value) over the grid if swept."""
+    starts = {param: (f"initial.{param}", np.array([getattr(initial, param)])) for param in ("x0", "y0", "phi0")}
+    for name in _GRID_AXES if grid is not None else ():
+        axis = getattr(grid, name)
+        if axis.param in starts:
+            starts[axis.param] = (f"grid.{name}", axis.values())
+    return starts
+
+
+def _first_overlap(clearance, reach, tolerance):
+    """First (i, j) with reach[j] > clearance[i] (a corner through a surface), or None."""
+    blocked = np.flatnonzero(clearance < reach.max() - tolerance)
+    if blocked.size == 0:
+        return None
+    i = blocked[0]
+    return i, np.flatnonzero(reach > clearance[i] + tolerance)[0]
+
+
+def _check_starts_clear(die, walls, initial, grid, checker):
+    """Refuse any start (the initial state or any grid point) with a corner inside a surface."""
+    starts = _start_values(initial, grid)
+    phi_key, phi = starts["phi0"]
+
+    def reach(direction, angle=phi):
+        return geometry.support(die.sides, die.circumradius, angle, direction)
+
+    surfaces = [("y0", "the table", starts["y0"][1], reach(geometry.DOWN))]
+    if walls.separation is not None:
+        half = 0.5 * walls.separation
+        x = starts["x0"][1]
+        surfaces += [("x0", "the right wall", half - x, reach(0.0)), ("x0", "the left wall", half + x, reach(np.pi))]
+    tolerance = TOUCH_TOLERANCE * die.circumradius
+    overlaps = [
+        (param, surface, clearance, reach_along, *found)
+        for param, surface, clearance, reach_along in surfaces
+        if (found := _first_overlap(clearance, reach_along, tolerance)) is not None
+    ]
+    if not overlaps:
+        return
+    # the table first, then the first offending grid value, whichever wall it meets
+    param, surface, clearance, reach_along, i, j = min(overlaps, key=lambda overlap: (overlap[0] != "y0", overlap[4]))
+    position_key, position = starts[param]
+    if param == "y0":
+        allowed = f"y0 >= {_fmt(reach_along[j])} m"
+    else:
+        allowed = f"{_fmt(reach(np.pi, phi[j]) - half)} <= x0 <= {_fmt(half - reach(0.0, phi[j]))} m"
+    # name the grid axis that holds the offending value, if any, since that is what to change
+    key = position_key if position_key.startswith("grid.") or not phi_key.startswith("grid.") else phi_key
+    raise checker.error(
+        key,
+        f"the start {param} = {position[i]:.10g} m, phi0 = {phi[j]:.10g} rad puts a corner "
+        f"{_fmt(reach_along[j] - clearance[i])} m into {surface} (allowed range at this phi0: {allowed})",
+    )
+
+
+def _build(raw, checker):
+    """Check the raw TOML dict section by section and build the Config."""
+    checker.check_known(raw, ())
+    sections = {}
+    for name, specs in _SECTION_SPECS.items():
+        table = checker.table(raw, (name,), required=False)
+        if name == "walls" and table is None:
+            sections[name] = Walls(separation=None)
+            continue
+        sections[name] = _SECTION_CLASSES[name](**checker.values(table or {}, (name,), specs))
+    die, walls = sections["die"], sections["walls"]
+    if walls.separation is not None and walls.separation <= 2.0 * die.circumradius:
+        wider = dataclasses.replace(_SECTION_SPECS["walls"]["separation"], low=2.0 * die.circumradius)
+        raise checker.error("walls.separation", f"{walls.separation!r} is outside the {_allowed(wider)} (more than twice the circumradius)")
+    grid = _grid(checker.table(raw, ("grid",), required=False), checker)
+    _check_starts_clear(die, walls, sections["initial"], grid, checker)
+    return Config(**sections, grid=grid, source=checker.source)
+
+
+def parse_config(text, source="<string>", overrides=()):
+    """Parse and validate a TOML config given as text.
+
+    Parameters
+    ----------
+    text : str
+        The TOML text.
+    source : str
+        Where the text came from, named in error messages.
+    overrides : sequence of str
+        ``section.key=value`` strings (``grid.x.num=64`` for grid axes), applied before
+        validation. The value is read as TOML, or as a bare string if that fails.
+
+    Returns
+    -------
+    Config
+        The validated config, defaults (Table I of the paper) filled in.
+
+    Raises
+    ------
+    ConfigError
+        On a TOML syntax error, a malformed override or any invalid value.
+    """
+    source = str(source)
+    raw = _parse_toml(text, source)
+    _apply_overrides(raw, overrides)
+    return _build(raw, _Checker(source, overridden=bool(overrides)))
+
+
+def load_config(path, overrides=()):
+    """Read, parse and validate a TOML config file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The config file.
+    overrides : sequence of str
+        ``section.key=value`` strings, as for :func:`parse_config`.
+
+    Returns
+    -------
+    Config
+        The validated config; ``source`` is ``str(path)``.
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read or the config is invalid.
+    """
+    try:
+        with open(path, encoding="utf-8") as file:
+            text = file.read()
+    except OSError as error:
+        raise ConfigError(path, "file", f"cannot read the config: {error.strerror or error}") from None
+    except UnicodeDecodeError as error:
+        raise ConfigError(path, "file", f"not UTF-8 text: {error.reason} at byte {error.start}") from None
+    return parse_config(text, str(path), overrides)
+
+
+def default_config():
+    """The default config: Table I of Smith 2014, no walls, no grid.
+
+    Returns
+    -------
+    Config
+        Same as ``parse_config("")``.
+    """
+    return parse_config("", source="<defaults>")
+
+
+def _toml_value(value):
+    """One TOML value: repr for floats (round-trips exactly), JSON quoting for strings."""
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, Axis):
+        items = (f"{name} = {_toml_value(getattr(value, name))}" for name in _AXIS_SPECS)
+        return "{ " + ", ".join(items) + " }"
+    return repr(value)
+
+
+def config_to_toml(cfg):
+    """Write the fully resolved config (every key) as TOML text.
+
+    ``parse_config(config_to_toml(cfg)) == cfg`` holds for every valid config.
+
+    Parameters
+    ----------
+    cfg : Config
+        A validated config.
+
+    Returns
+    -------
+    str
+        TOML text; no [walls] without walls, no [grid] without a grid.
+    """
+    lines = []
+    for name in _SECTIONS:
+        section = getattr(cfg, name)
+        if section is None or section == Walls(separation=None):
+            continue
+        lines.append(f"[{name}]")
+        lines += [f"{item.name} = {_toml_value(getattr(section, item.name))}" for item in dataclasses.fields(section)]
+        lines.append("")
+    return "\n".join(lines)
