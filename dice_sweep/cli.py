@@ -1,0 +1,179 @@
+"""The ``dice-sweep`` command line: roll, sweep, merge, plot.
+
+The only module that imports click. Each command is a few lines over one library call; the
+library modules are imported inside the commands so that ``dice-sweep --help`` starts fast.
+A user error (any :class:`~dice_sweep.errors.DiceSweepError`, or a file that cannot be read or
+written) is printed as one line ``error: ...`` on stderr with exit code 2, never a traceback.
+"""
+
+import json
+import sys
+
+import click
+
+from dice_sweep import __version__
+from dice_sweep.errors import ConfigError, DiceSweepError
+
+USER_ERROR_EXIT = 2
+INTERRUPTED_EXIT = 130  # the shell's code for a process stopped by SIGINT (Ctrl-C)
+SET_HELP = "Override one config value, e.g. --set initial.omega0=20 or --set grid.x.num=64 (repeatable)."
+
+
+def _exit_code(error):
+    """Exit code of a user error: 130 for an interrupted sweep, else 2."""
+    # an interrupted sweep can only come from dice_sweep.sweep, so it is imported already
+    sweep = sys.modules.get("dice_sweep.sweep")
+    interrupted = getattr(sweep, "SweepInterrupted", ())
+    return INTERRUPTED_EXIT if interrupted and isinstance(error, interrupted) else USER_ERROR_EXIT
+
+
+class _Commands(click.Group):
+    """A click group that turns user errors into one line on stderr and exit code 2."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except (DiceSweepError, OSError) as error:
+            click.echo(f"error: {error}", err=True)
+            ctx.exit(_exit_code(error))
+
+
+def _load(config_path, overrides):
+    from dice_sweep.config import load_config
+
+    return load_config(config_path, overrides)
+
+
+def _parse_shard(ctx, param, text):
+    from dice_sweep.sweep import parse_shard
+
+    return parse_shard(text)
+
+
+def _parse_box(ctx, param, text):
+    if text is None:
+        return None
+    from dice_sweep.plotting import parse_box
+
+    return parse_box(text)
+
+
+def _at_least_one(ctx, param, value):
+    if value is not None and value < 1:
+        raise DiceSweepError(f"--{param.name}: {value} is outside the allowed range [1, inf)")
+    return value
+
+
+def _set_option(command):
+    return click.option("--set", "overrides", multiple=True, metavar="SECTION.KEY=VALUE", help=SET_HELP)(command)
+
+
+@click.group(cls=_Commands, name="dice-sweep", context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="dice-sweep")
+def main():
+    """Final-state diagrams of a two-dimensional n-gon die dropped on a table (Smith 2014).
+
+    Configs are TOML files in SI units (see configs/). Errors in a config are reported on one
+    line with the file, the key and the allowed range, and exit with code 2.
+
+    \b
+    Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png
+    """
+
+
+@main.command()
+@click.argument("config")
+@_set_option
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object instead of a sentence.")
+@click.option("--png", "png_path", metavar="PATH", help="Draw the path of the die to this PNG.")
+@click.option("--gif", "gif_path", metavar="PATH", help="Animate the roll into this GIF.")
+def roll(config, overrides, as_json, png_path, gif_path):
+    """Roll the die once from the [initial] state of CONFIG and print the side it lands on.
+
+    \b
+    Example: dice-sweep roll configs/table1.toml --set initial.omega0=20 --json
+    """
+    cfg = _load(config, overrides)
+    from dice_sweep.roll import roll_config
+
+    report = roll_config(cfg)
+    click.echo(json.dumps(report.to_dict()) if as_json else _describe_roll(report))
+    if png_path:
+        from dice_sweep.plotting import plot_roll
+
+        plot_roll(cfg, report, png_path)
+    if gif_path:
+        from dice_sweep.plotting import animate_roll
+
+        animate_roll(cfg, report, gif_path)
+
+
+def _describe_roll(report):
+    """One sentence about a roll: the side, the impacts and the time to decision."""
+    if report.status == 0:
+        return f"side {report.outcome} after {report.impacts} impacts, decided at t = {report.t_decided:.4f} s"
+    return f"no side: {report.status_name} (status {report.status}) after {report.impacts} impacts"
+
+
+@main.command()
+@click.argument("config")
+@click.option("-o", "--output", "out_path", required=True, metavar="OUT.h5", help="HDF5 file to write.")
+@click.option("--png", "png_path", metavar="OUT.png", help="Also draw the final-state diagram to this PNG.")
+@click.option("--workers", type=int, callback=_at_least_one, help="Worker processes [default: all cores].")
+@click.option("--shard", default="0/1", show_default=True, callback=_parse_shard, metavar="I/N", help="Run only part I of N (0 <= I < N); join the parts with merge.")
+@click.option("--resume", is_flag=True, help="Finish an interrupted OUT.h5 of the same config and shard.")
+@_set_option
+@click.option("--quiet", is_flag=True, help="No progress bar and no summary line.")
+def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet):
+    """Roll the die over the [grid] of CONFIG and write the outcome maps to OUT.h5.
+
+    \b
+    Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
+    """
+    from dice_sweep.sweep import run_sweep
+
+    cfg = _load(config, overrides)
+    if cfg.grid is None:
+        raise ConfigError(cfg.source, "grid", "missing; sweep needs a [grid] with x = {...} and y = {...} (use roll for one roll)")
+    summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=not quiet)
+    if not quiet:
+        click.echo(summary.describe())
+    if png_path:
+        from dice_sweep.plotting import plot_outcome_file
+
+        _report_written(plot_outcome_file(out_path, png_path), quiet)
+
+
+def _report_written(path, quiet=False):
+    if not quiet:
+        click.echo(f"wrote {path}")
+
+
+@main.command()
+@click.argument("parts", nargs=-1, required=True, metavar="PART.h5...")
+@click.option("-o", "--output", "out_path", required=True, metavar="OUT.h5", help="Merged HDF5 file to write.")
+def merge(parts, out_path):
+    """Join the shard files of one sweep (from sweep --shard I/N) into one complete OUT.h5.
+
+    \b
+    Example: dice-sweep merge part0.h5 part1.h5 -o out/fig08.h5
+    """
+    from dice_sweep.sweep import merge_parts
+
+    click.echo(merge_parts(parts, out_path).describe())
+
+
+@main.command()
+@click.argument("h5_path", metavar="OUT.h5")
+@click.option("-o", "--output", "png_path", required=True, metavar="OUT.png", help="PNG to write.")
+@click.option("--box", callback=_parse_box, metavar="XMIN,XMAX,YMIN,YMAX", help="Draw a zoom rectangle, in the units of the axes.")
+@click.option("--dpi", type=int, default=150, show_default=True, callback=_at_least_one, help="Pixels per inch.")
+def plot(h5_path, png_path, box, dpi):
+    """Draw the final-state diagram of a sweep file OUT.h5 as a PNG.
+
+    \b
+    Example: dice-sweep plot out/fig09.h5 -o out/fig09.png --box 40,50,0.2,0.25 --dpi 200
+    """
+    from dice_sweep.plotting import plot_outcome_file
+
+    _report_written(plot_outcome_file(h5_path, png_path, box=box, dpi=dpi))

@@ -1,0 +1,307 @@
+"""Tests of the dice-sweep command line: help texts, one-line errors, option parsing, wiring."""
+
+import json
+import pathlib
+import subprocess
+import sys
+import types
+
+import click
+import pytest
+from click.testing import CliRunner
+
+from dice_sweep import cli
+
+CONFIG_DIR = pathlib.Path(__file__).resolve().parent.parent / "configs"
+TABLE1 = str(CONFIG_DIR / "table1.toml")
+DEMO = str(CONFIG_DIR / "demo.toml")
+
+
+def run(*args):
+    """Invoke the CLI in-process; stderr apart from stdout (click 8.1 needs mix_stderr=False)."""
+    try:
+        runner = CliRunner(mix_stderr=False)
+    except TypeError:  # click >= 8.2 always keeps stderr apart
+        runner = CliRunner()
+    return runner.invoke(cli.main, [str(arg) for arg in args])
+
+
+def assert_user_error(result, *fragments):
+    """Exit code 2, one line ``error: ...`` on stderr naming every fragment, no traceback."""
+    assert result.exit_code == 2, (result.stdout, result.stderr)
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("error: ")
+    assert "Traceback" not in result.stderr + result.stdout
+    for fragment in fragments:
+        assert fragment in lines[0]
+    return lines[0]
+
+
+@pytest.fixture
+def calls(monkeypatch):
+    """Replace the library calls of the commands with recorders; return the list of calls."""
+    recorded = []
+
+    def recorder(name, result=None):
+        def record(*args, **kwargs):
+            recorded.append((name, args, kwargs))
+            return result
+
+        return record
+
+    report = types.SimpleNamespace(
+        outcome=2, status=0, status_name="decided", impacts=7, t_decided=0.4321,
+        to_dict=lambda: {"outcome": 2, "status": 0, "impacts": 7, "t_decided": 0.4321},
+    )
+    summary = types.SimpleNamespace(describe=lambda: "summary line")
+    roll_module = types.ModuleType("dice_sweep.roll")
+    roll_module.roll_config = lambda cfg: recorded.append(("roll_config", (cfg,), {})) or report
+    monkeypatch.setitem(sys.modules, "dice_sweep.roll", roll_module)
+    import dice_sweep.plotting
+    import dice_sweep.sweep
+
+    monkeypatch.setattr(dice_sweep.sweep, "run_sweep", recorder("run_sweep", summary))
+    monkeypatch.setattr(dice_sweep.sweep, "merge_parts", recorder("merge_parts", summary))
+    monkeypatch.setattr(dice_sweep.plotting, "plot_outcome_file", recorder("plot_outcome_file", "the.png"))
+    monkeypatch.setattr(dice_sweep.plotting, "plot_roll", recorder("plot_roll"))
+    monkeypatch.setattr(dice_sweep.plotting, "animate_roll", recorder("animate_roll"))
+    return recorded
+
+
+# ---- help texts -----------------------------------------------------------------------------
+
+
+def test_every_command_has_help_ending_with_an_example():
+    commands = [("", cli.main)] + [(name, command) for name, command in cli.main.commands.items()]
+    assert {name for name, _ in commands} == {"", "roll", "sweep", "merge", "plot"}
+    for name, command in commands:
+        last_line = command.help.strip().splitlines()[-1].strip()
+        assert last_line.startswith("Example: dice-sweep "), name
+        assert last_line.split()[2] == (name or last_line.split()[2]), name
+        args = [name, "--help"] if name else ["--help"]
+        result = run(*args)
+        assert result.exit_code == 0
+        assert last_line in result.stdout
+
+
+def test_help_does_not_import_the_heavy_modules():
+    code = "import sys; from dice_sweep import cli; print(sorted(m for m in ('numpy', 'numba', 'matplotlib', 'h5py') if m in sys.modules))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_python_dash_m_runs_the_cli():
+    result = subprocess.run([sys.executable, "-m", "dice_sweep", "--help"], capture_output=True, text=True)
+    assert result.returncode == 0
+    assert "Example: dice-sweep" in result.stdout
+
+
+def test_version():
+    assert run("--version").stdout.strip().endswith(cli.__version__)
+
+
+# ---- config and --set errors end to end -----------------------------------------------------
+
+
+def test_set_out_of_range_is_one_line_naming_file_key_and_range(calls):
+    line = assert_user_error(run("roll", TABLE1, "--set", "contact.beta_normal=1.5"))
+    assert line == f"error: {TABLE1} with --set: contact.beta_normal: 1.5 is outside the allowed range [0, 1]"
+    assert calls == []
+
+
+@pytest.mark.parametrize(
+    ("override", "fragments"),
+    [
+        ("contact.beta_normal", ["--set: contact.beta_normal", "expected section.key=value"]),
+        ("contact.beta_norml=0.3", ["--set: contact.beta_norml", "did you mean 'beta_normal'?"]),
+        ("grid.x.nm=8", ["--set: grid.x.nm", "did you mean 'num'?"]),
+        ("die.sides=2.5", ["die.sides", "expected an integer"]),
+        ("integrator.method=rk4", ["integrator.method", "allowed values: event, fixed_step"]),
+    ],
+)
+def test_bad_set_on_roll_and_sweep(calls, override, fragments):
+    assert_user_error(run("roll", TABLE1, "--set", override), *fragments)
+    assert_user_error(run("sweep", DEMO, "-o", "x.h5", "--set", override), *fragments)
+    assert calls == []
+
+
+def test_set_values_reach_the_library(calls):
+    result = run("sweep", DEMO, "-o", "x.h5", "--set", "grid.x.num=4", "--set", "integrator.method=fixed_step", "--quiet")
+    assert result.exit_code == 0, result.stderr
+    (name, (cfg, out_path), kwargs), = calls
+    assert (name, out_path) == ("run_sweep", "x.h5")
+    assert cfg.grid.x.num == 4 and cfg.integrator.method == "fixed_step"
+
+
+@pytest.mark.parametrize(
+    ("text", "fragments"),
+    [
+        ("[die]\nsides = 2\n", ["die.sides", "2 is outside the allowed range [3, 1000]"]),
+        ("[contact]\nbeta_tangential = 2.0\n", ["contact.beta_tangential", "allowed range [-1, 1]"]),
+        ("[walls]\nseparation = 0.01\n", ["walls.separation", "allowed range (0.0268701, inf) m"]),
+        ("[initial]\ny0 = 0.001\n", ["initial.y0", "into the table"]),
+        ("[initial]\nomega0 = nan\n", ["initial.omega0", "not a finite number"]),
+        ("[die]\nsides = 4\n[contact\n", ["line 3", "TOML syntax error"]),
+        ("[dye]\nsides = 4\n", ["dye", "did you mean 'die'?"]),
+    ],
+)
+def test_bad_config_file_is_one_line_error(tmp_path, calls, text, fragments):
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    assert_user_error(run("roll", path), str(path), *fragments)
+    assert calls == []
+
+
+def test_missing_config_file(calls, tmp_path):
+    assert_user_error(run("roll", tmp_path / "nope.toml"), "nope.toml", "No such file")
+
+
+def test_sweep_needs_a_grid(calls):
+    assert_user_error(run("sweep", TABLE1, "-o", "x.h5"), f"{TABLE1}: grid: missing")
+    assert calls == []
+
+
+# ---- option parsing -------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("shard", ["3/2", "2/2", "-1/2", "a/b", "1", "1/2/3", "0/0"])
+def test_bad_shard_is_one_line_error(calls, shard):
+    assert_user_error(run("sweep", DEMO, "-o", "x.h5", "--shard", shard), "--shard")
+    assert calls == []
+
+
+@pytest.mark.parametrize("workers", ["0", "-3"])
+def test_bad_workers_is_one_line_error(calls, workers):
+    assert_user_error(run("sweep", DEMO, "-o", "x.h5", "--workers", workers), "--workers", "[1, inf)")
+
+
+@pytest.mark.parametrize("box", ["1,2,3", "a,b,c,d", "2,1,0,1", "0,1,1,0", "0,1,0,nan", "0,1,0,1,2"])
+def test_bad_box_is_one_line_error(calls, box):
+    assert_user_error(run("plot", "x.h5", "-o", "x.png", "--box", box), "--box")
+    assert calls == []
+
+
+def test_bad_dpi_is_one_line_error(calls):
+    assert_user_error(run("plot", "x.h5", "-o", "x.png", "--dpi", "0"), "--dpi")
+
+
+# ---- wiring of the commands to the library ----------------------------------------------------
+
+
+def test_sweep_passes_options_to_run_sweep_and_plots(calls):
+    result = run("sweep", DEMO, "-o", "out.h5", "--png", "out.png", "--workers", "3", "--shard", "1/4", "--resume")
+    assert result.exit_code == 0, result.stderr
+    (name, (cfg, out_path), kwargs), plot_call = calls
+    assert name == "run_sweep" and out_path == "out.h5"
+    assert kwargs == {"workers": 3, "shard": (1, 4), "resume": True, "progress": True}
+    assert cfg.grid.x.num == 128 and cfg.source == DEMO
+    assert plot_call == ("plot_outcome_file", ("out.h5", "out.png"), {})
+    assert result.stdout.splitlines() == ["summary line", "wrote the.png"]
+
+
+def test_sweep_defaults(calls):
+    result = run("sweep", DEMO, "-o", "out.h5", "--quiet")
+    assert result.exit_code == 0, result.stderr
+    assert calls[0][2] == {"workers": None, "shard": (0, 1), "resume": False, "progress": False}
+    assert result.stdout == ""
+
+
+def test_roll_prints_a_sentence_or_json(calls):
+    result = run("roll", TABLE1)
+    assert result.exit_code == 0, result.stderr
+    assert result.stdout.strip() == "side 2 after 7 impacts, decided at t = 0.4321 s"
+    result = run("roll", TABLE1, "--json", "--set", "initial.omega0=25")
+    assert json.loads(result.stdout) == {"outcome": 2, "status": 0, "impacts": 7, "t_decided": 0.4321}
+    assert calls[-1][1][0].initial.omega0 == 25.0
+
+
+def test_roll_that_is_not_decided_says_why(calls, monkeypatch):
+    report = types.SimpleNamespace(outcome=-1, status=1, status_name="t_max", impacts=900, t_decided=float("nan"))
+    monkeypatch.setattr(sys.modules["dice_sweep.roll"], "roll_config", lambda cfg: report)
+    assert run("roll", TABLE1).stdout.strip() == "no side: t_max (status 1) after 900 impacts"
+
+
+def test_roll_draws_png_and_gif(calls):
+    result = run("roll", TABLE1, "--png", "r.png", "--gif", "r.gif")
+    assert result.exit_code == 0, result.stderr
+    assert [(name, args[2]) for name, args, _ in calls[1:]] == [("plot_roll", "r.png"), ("animate_roll", "r.gif")]
+
+
+def test_merge_and_plot_pass_their_arguments(calls):
+    assert run("merge", "a.h5", "b.h5", "-o", "m.h5").exit_code == 0
+    assert run("plot", "m.h5", "-o", "m.png", "--box", "1,2,0.1,0.2", "--dpi", "80").exit_code == 0
+    assert calls == [
+        ("merge_parts", (("a.h5", "b.h5"), "m.h5"), {}),
+        ("plot_outcome_file", ("m.h5", "m.png"), {"box": (1.0, 2.0, 0.1, 0.2), "dpi": 80}),
+    ]
+
+
+def test_library_user_errors_and_os_errors_become_one_line(calls, monkeypatch):
+    import dice_sweep.sweep
+    from dice_sweep.errors import DiceSweepError
+
+    def refuse(*args, **kwargs):
+        raise DiceSweepError("x.h5: exists; use --resume or remove it")
+
+    monkeypatch.setattr(dice_sweep.sweep, "run_sweep", refuse)
+    assert_user_error(run("sweep", DEMO, "-o", "x.h5"), "x.h5: exists")
+
+    def unwritable(*args, **kwargs):
+        raise PermissionError(13, "Permission denied", "/root/x.png")
+
+    monkeypatch.setattr(dice_sweep.sweep, "merge_parts", unwritable)
+    assert_user_error(run("merge", "a.h5", "-o", "/root/x.png"), "Permission denied")
+
+
+def test_interrupted_sweep_exits_130(calls, monkeypatch):
+    import dice_sweep.sweep
+
+    def interrupted(*args, **kwargs):
+        raise dice_sweep.sweep.SweepInterrupted("x.h5: interrupted; run again with --resume")
+
+    monkeypatch.setattr(dice_sweep.sweep, "run_sweep", interrupted)
+    result = run("sweep", DEMO, "-o", "x.h5")
+    assert result.exit_code == 130
+    assert result.stderr.strip() == "error: x.h5: interrupted; run again with --resume"
+
+
+def test_bugs_are_not_hidden(calls, monkeypatch):
+    import dice_sweep.sweep
+
+    monkeypatch.setattr(dice_sweep.sweep, "run_sweep", lambda *a, **k: 1 / 0)
+    result = run("sweep", DEMO, "-o", "x.h5")
+    assert result.exit_code == 1
+    assert isinstance(result.exception, ZeroDivisionError)
+
+
+# ---- end to end with the real kernel ---------------------------------------------------------
+
+
+def test_roll_table1_json_end_to_end():
+    """The real roll of configs/table1.toml (needs dice_sweep.roll from the physics work)."""
+    result = run("roll", TABLE1, "--json")
+    assert result.exit_code == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert {"outcome", "status", "impacts", "t_decided"} <= set(report)
+    # "status" may be the code or its name (then the code is "status_code")
+    assert report.get("status_code", report["status"]) in (0, "decided")
+    assert report["status"] in (0, "decided")
+    assert report["outcome"] in range(4)
+    assert report["impacts"] >= 1
+    # the centre falls 0.15 - R before the first corner can touch: decided after that
+    assert report["t_decided"] > (2 * (0.15 - 0.0135) / 9.81) ** 0.5
+    again = json.loads(run("roll", TABLE1, "--json").stdout)
+    assert again == report  # deterministic
+
+
+def test_click_is_imported_only_by_the_cli():
+    package = pathlib.Path(cli.__file__).parent
+    importers = sorted(
+        path.relative_to(package).as_posix()
+        for path in package.rglob("*.py")
+        if "import click" in path.read_text() or "from click" in path.read_text()
+    )
+    assert importers == ["cli.py"]
+    assert isinstance(cli.main, click.Group)
