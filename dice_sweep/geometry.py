@@ -38,15 +38,13 @@ def apothem(sides, circumradius):
 
     Parameters
     ----------
-    sides : int
-        Number of sides n (>= 3).
-    circumradius : float
-        Circumradius R, m.
+    sides, circumradius : int, float
+        The die: n >= 3 sides inscribed in a circle of radius R (m).
 
     Returns
     -------
-    float
-        Apothem A, m.
+    apothem : float
+        A, m: the height of the centre when the die lies flat on a side.
     """
     return circumradius * np.cos(np.pi / sides)
 
@@ -57,14 +55,14 @@ def side_length(sides, circumradius):
     Parameters
     ----------
     sides : int
-        Number of sides n (>= 3).
+        n >= 3.
     circumradius : float
-        Circumradius R, m.
+        R, m: the distance from the centre to each corner.
 
     Returns
     -------
-    float
-        Side length S, m.
+    side : float
+        S, m.
     """
     return 2.0 * circumradius * np.sin(np.pi / sides)
 
@@ -82,8 +80,8 @@ def inertia_ratio(sides):
 
     Returns
     -------
-    float or ndarray
-        alpha, dimensionless.
+    alpha : float or ndarray
+        Dimensionless.
     """
     half_angle = np.pi / np.asarray(sides, dtype=float)
     return np.sin(half_angle) ** 2 / 6.0 + np.cos(half_angle) ** 2 / 2.0
@@ -94,16 +92,14 @@ def moment_of_inertia(sides, circumradius, mass):
 
     Parameters
     ----------
-    sides : int
-        Number of sides n (>= 3).
-    circumradius : float
-        Circumradius R, m.
+    sides, circumradius : int, float
+        Shape of the plate: n >= 3 sides, circumradius R in m.
     mass : float
-        Mass M, kg.
+        M, kg (uniformly spread over the plate).
 
     Returns
     -------
-    float
+    inertia : float
         I, kg m^2.
     """
     return inertia_ratio(sides) * mass * circumradius**2
@@ -115,13 +111,13 @@ def corner_angles(sides, phi):
     Parameters
     ----------
     sides : int
-        Number of sides n (>= 3).
+        n >= 3.
     phi : float
-        Orientation of the die (the angle of corner 0), rad.
+        Orientation of the die: the angle of corner 0, rad.
 
     Returns
     -------
-    ndarray, shape (n,)
+    angles : ndarray, shape (n,)
         Corner angles, rad (not reduced modulo 2 pi).
     """
     return phi + _central_angle(sides) * np.arange(sides)
@@ -132,18 +128,16 @@ def corners(sides, circumradius, x, y, phi):
 
     Parameters
     ----------
-    sides : int
-        Number of sides n (>= 3).
-    circumradius : float
-        Circumradius R, m.
+    sides, circumradius : int, float
+        The die: n >= 3 corners on a circle of radius R (m).
     x, y : float
         Position of the centre, m.
     phi : float
-        Orientation (angle of corner 0), rad.
+        Angle of corner 0, rad.
 
     Returns
     -------
-    ndarray, shape (n, 2)
+    points : ndarray, shape (n, 2)
         Row k holds (x, y) of corner k, m.
     """
     angles = corner_angles(sides, phi)
@@ -160,9 +154,9 @@ def support(sides, circumradius, phi, direction):
     Parameters
     ----------
     sides : int
-        Number of sides n (>= 3).
+        n >= 3.
     circumradius : float
-        Circumradius R, m.
+        R, m.
     phi : float or array_like
         Orientation (angle of corner 0), rad.
     direction : float or array_like
@@ -170,7 +164,7 @@ def support(sides, circumradius, phi, direction):
 
     Returns
     -------
-    float or ndarray
+    reach : float or ndarray
         Reach along the direction, m, between the apothem and R; broadcast over phi, direction.
     """
     spacing = _central_angle(sides)
@@ -184,18 +178,16 @@ def lowest_corner_height(sides, circumradius, y, phi):
 
     Parameters
     ----------
-    sides : int
-        Number of sides n (>= 3).
-    circumradius : float
-        Circumradius R, m.
+    sides, circumradius : int, float
+        The die: n >= 3 sides, circumradius R in m.
     y : float or array_like
         Height of the centre above the table, m.
     phi : float or array_like
-        Orientation (angle of corner 0), rad.
+        Angle of corner 0, rad.
 
     Returns
     -------
-    float or ndarray
+    height : float or ndarray
         Height of the lowest corner, m (negative: inside the table); broadcast over y, phi.
     """
     return np.asarray(y) - support(sides, circumradius, phi, DOWN)
@@ -211,13 +203,13 @@ def side_below(sides, phi):
     Parameters
     ----------
     sides : int
-        Number of sides n (>= 3).
+        n >= 3.
     phi : float or array_like
-        Orientation (angle of corner 0), rad.
+        Orientation of the die (angle of corner 0), rad.
 
     Returns
     -------
-    int or ndarray of int
+    side : int or ndarray of int
         Side index in 0 .. n-1.
     """
     turns = np.mod(DOWN - np.asarray(phi, dtype=float), 2.0 * np.pi) / _central_angle(sides)
