@@ -362,9 +362,11 @@ def _parse_toml(text, source):
 def _parse_override_value(text):
     """A ``--set`` value as a TOML value (0.3, 4, "event", [1, 2], true), else a bare string."""
     try:
-        return tomllib.loads(f"value = {text}")["value"]
+        parsed = tomllib.loads(f"value = {text}")
     except tomllib.TOMLDecodeError:
         return text
+    # text with a newline could define more keys than the one value: keep it as it is
+    return parsed["value"] if len(parsed) == 1 else text
 
 
 def _apply_overrides(raw, overrides):

@@ -300,6 +300,12 @@ def test_overrides_apply_in_order_and_to_a_grid_written_inline():
     assert cfg.initial.omega0 == 2.0
 
 
+def test_override_value_cannot_smuggle_in_other_keys():
+    error = config_error("", overrides=['integrator.method="event"\ndt = 5'])
+    assert error.key == "integrator.method"
+    assert parse_config("").integrator.dt == 0.001
+
+
 def test_override_is_validated_and_the_error_says_it_came_from_set():
     error = config_error("", overrides=["contact.beta_normal=1.5"], source="configs/x.toml")
     assert str(error) == "configs/x.toml with --set: contact.beta_normal: 1.5 is outside the allowed range [0, 1]"
