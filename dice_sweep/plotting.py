@@ -1,0 +1,399 @@
+"""Pictures: final-state diagrams of a sweep and the path of one roll.
+
+The only module that imports matplotlib. It uses the object API only (``Figure`` drawn on an
+Agg canvas, never pyplot), so it keeps no global state and needs no display.
+
+Colours follow Smith 2014: for n = 4 sides 0-3 are red, green, cyan and violet (Fig. 8); for
+any other n a rainbow runs from red (side 0) to violet (side n - 1) (Figs 9, 11); undecided
+rolls (outcome -1) are black.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.animation import PillowWriter
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import BoundaryNorm, ListedColormap, hsv_to_rgb
+from matplotlib.figure import Figure
+from matplotlib.patches import Polygon, Rectangle
+
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.geometry import corners
+
+VIOLET_HUE = 0.78  # HSV hue of the rainbow's last side; 1.0 would wrap back to red
+FOUR_SIDE_COLORS = np.array(
+    [
+        (1.0, 0.0, 0.0, 1.0),  # red
+        (0.0, 0.75, 0.0, 1.0),  # green, darker than (0, 1, 0) to stand apart from cyan
+        (0.0, 1.0, 1.0, 1.0),  # cyan
+        (*hsv_to_rgb((VIOLET_HUE, 1.0, 1.0)), 1.0),  # violet, as the rainbow's end
+    ]
+)
+UNDECIDED_COLOR = (0.0, 0.0, 0.0, 1.0)
+BOX_COLOR = "white"  # zoom rectangle: absent from every outcome colour table
+MAX_SIDE_LABELS = 24  # colour bar ticks beyond this are thinned to stay legible
+
+# Whole inches, so an integer dpi gives exactly figsize * dpi pixels (Agg truncates fractions).
+OUTCOME_FIGSIZE = (7, 5)
+ROLL_FIGSIZE = (7, 5)
+ANIMATION_FIGSIZE = (5, 4)
+ANIMATION_DPI = 80
+MAX_ANIMATION_FRAMES = 300
+PATH_POINTS_PER_FRAME = 40  # samples of the centre's path between two drawn outlines
+
+
+# --- final-state diagrams -------------------------------------------------------------------
+
+
+def axis_label(param, unit):
+    """Axis label of a swept parameter, e.g. ``axis_label("omega0", "rad/s") == "omega0 (rad/s)"``.
+
+    Units come with the sweep file (:attr:`dice_sweep.storage.SweepAxis.unit`).
+    """
+    return f"{param} ({unit})"
+
+
+def outcome_colors(sides):
+    """RGBA colour of each side of an n-gon die in a final-state diagram.
+
+    Parameters
+    ----------
+    sides : int
+        Number of sides n >= 3.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (n, 4), values in [0, 1]; row k is the colour of side k. n = 4 gives red, green,
+        cyan, violet (Smith 2014, Fig. 8); other n a rainbow of HSV hues from 0 (red) to
+        :data:`VIOLET_HUE` (violet). Undecided rolls use :data:`UNDECIDED_COLOR`.
+    """
+    if sides == 4:
+        return FOUR_SIDE_COLORS.copy()
+    hsv = np.ones((sides, 3))
+    hsv[:, 0] = np.linspace(0.0, VIOLET_HUE, sides)
+    return np.column_stack([hsv_to_rgb(hsv), np.ones(sides)])
+
+
+def _cell_extent(values):
+    """(first edge, last edge) of equal cells whose centres are ``values``.
+
+    A single cell has no width to infer; it gets width 1 in the axis unit.
+    """
+    values = np.asarray(values, dtype=float)
+    width = (values[-1] - values[0]) / (len(values) - 1) if len(values) > 1 else 1.0
+    return values[0] - width / 2, values[-1] + width / 2
+
+
+def draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, title=None, *, extent=None):
+    """Draw a final-state diagram on ``ax`` with a colour bar naming the sides.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Axes of a :class:`matplotlib.figure.Figure`; the colour bar is added beside it.
+    outcome : array_like of int, shape (ny, nx)
+        Side 0..n-1 of each roll, -1 for undecided; row i belongs to ``y_values[i]``.
+    x_values, y_values : array_like of float, shapes (nx,) and (ny,)
+        Cell centres of the two axes (equally spaced), in the parameters' SI units.
+    x_label, y_label : str
+        Axis labels with parameter and unit, see :func:`axis_label`.
+    sides : int
+        Number of sides n of the die.
+    title : str, optional
+        Title of the axes.
+    extent : tuple of 4 float, optional
+        (xmin, xmax, ymin, ymax) covered by the cells; by default inferred from the centres
+        (a single cell then gets width 1).
+
+    Returns
+    -------
+    matplotlib.image.AxesImage
+        The drawn image; its extent is exactly the outer cell edges.
+    """
+    # Colour index -1 (undecided) .. n-1 (sides) maps onto bins centred on the integers.
+    cmap = ListedColormap(np.vstack([UNDECIDED_COLOR, outcome_colors(sides)]))
+    norm = BoundaryNorm(np.arange(-1.5, sides), cmap.N)
+    image = ax.imshow(
+        np.asarray(outcome),
+        cmap=cmap,
+        norm=norm,
+        origin="lower",
+        extent=extent or (*_cell_extent(x_values), *_cell_extent(y_values)),
+        interpolation="nearest",
+        aspect="auto",
+    )
+    ticks = np.arange(-1, sides)
+    step = math.ceil(len(ticks) / MAX_SIDE_LABELS)
+    ticks = np.concatenate([ticks[:1], ticks[1::step]])
+    colorbar = ax.figure.colorbar(image, ax=ax, ticks=ticks)
+    colorbar.ax.set_yticklabels(["undecided"] + [f"side {k}" for k in ticks[1:]])
+    colorbar.ax.tick_params(labelsize="small" if sides <= 12 else "x-small")
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    if title:
+        ax.set_title(title, fontsize="medium")
+    return image
+
+
+def draw_box(ax, box):
+    """Draw the zoom rectangle ``box = (xmin, xmax, ymin, ymax)`` (Smith 2014, Figs 9, 11)."""
+    xmin, xmax, ymin, ymax = box
+    ax.add_patch(
+        Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor=BOX_COLOR, linewidth=1.5)
+    )
+
+
+def parse_box(text):
+    """Parse ``"XMIN,XMAX,YMIN,YMAX"`` (the ``--box`` option) into four floats.
+
+    Raises
+    ------
+    DiceSweepError
+        If there are not four finite numbers with XMIN < XMAX and YMIN < YMAX.
+    """
+    try:
+        box = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        box = ()
+    if len(box) != 4 or not all(map(math.isfinite, box)) or box[0] >= box[1] or box[2] >= box[3]:
+        raise DiceSweepError(f"--box: expected XMIN,XMAX,YMIN,YMAX with XMIN < XMAX and YMIN < YMAX, got {text!r}")
+    return box
+
+
+def outcome_title(cfg, complete=True):
+    """Title of a final-state diagram: n, the restitution coefficients and the walls.
+
+    Parameters
+    ----------
+    cfg : dice_sweep.config.Config
+        The sweep's resolved config.
+    complete : bool
+        False marks the title "(incomplete)": part of the grid has not been run.
+    """
+    separation = cfg.walls.separation
+    walls = "no walls" if separation is None else f"walls {separation:g} m apart"
+    title = (
+        f"n = {cfg.die.sides}, beta_normal = {cfg.contact.beta_normal:g}, "
+        f"beta_tangential = {cfg.contact.beta_tangential:g}, {walls}"
+    )
+    return title if complete else f"{title} (incomplete)"
+
+
+def outcome_figure(
+    outcome, x_values, y_values, x_label, y_label, sides, *, title=None, box=None, extent=None, dpi=150
+):
+    """A :class:`~matplotlib.figure.Figure` holding one final-state diagram.
+
+    Parameters are those of :func:`draw_outcome_map`, plus ``box`` (the zoom rectangle
+    ``(xmin, xmax, ymin, ymax)``, optional) and ``dpi`` (pixels per inch of the figure).
+    """
+    fig = Figure(figsize=OUTCOME_FIGSIZE, dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, title=title, extent=extent)
+    if box is not None:
+        draw_box(ax, box)
+    return fig
+
+
+def sweep_figure(sweep, *, box=None, dpi=150):
+    """The final-state diagram of a sweep read by :func:`dice_sweep.storage.read_sweep`.
+
+    Parameters
+    ----------
+    sweep : dice_sweep.storage.SweepData
+        Outcome map, axes (values, parameter, unit, range), config text and ``complete`` flag;
+        an incomplete sweep is drawn (cells not run are undecided) and titled so.
+    box : tuple of 4 float, optional
+        Zoom rectangle ``(xmin, xmax, ymin, ymax)`` in the axes' units.
+    dpi : float
+        Pixels per inch.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from dice_sweep.config import parse_config
+
+    cfg = parse_config(sweep.config_toml, source=f"{sweep.path}: config_toml")
+    return outcome_figure(
+        sweep.outcome,
+        sweep.x.values,
+        sweep.y.values,
+        axis_label(sweep.x.param, sweep.x.unit),
+        axis_label(sweep.y.param, sweep.y.unit),
+        sweep.sides,
+        title=outcome_title(cfg, sweep.complete),
+        box=box,
+        extent=sweep.extent,
+        dpi=dpi,
+    )
+
+
+def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150):
+    """Write the final-state diagram of an HDF5 sweep file (docs/hdf5.md) as a PNG.
+
+    Parameters
+    ----------
+    h5_path : str or pathlib.Path
+        Sweep file, complete or not.
+    png_path : str or pathlib.Path
+        PNG to write; its size is :data:`OUTCOME_FIGSIZE` times ``dpi`` pixels.
+    box, dpi
+        As in :func:`sweep_figure`.
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    from dice_sweep.storage import read_sweep  # lazy: drawing a roll needs no h5py
+
+    sweep_figure(read_sweep(h5_path), box=box, dpi=dpi).savefig(png_path, dpi=dpi)
+    return Path(png_path)
+
+
+# --- one roll ------------------------------------------------------------------------------
+
+
+def _default_path_sampler():
+    """:func:`dice_sweep.roll.sample_path`, imported only when a roll is drawn."""
+    from dice_sweep.roll import sample_path  # lazy: roll imports the numba kernel
+
+    return sample_path
+
+
+def _die_corners(cfg, state):
+    """(n, 2) corners of the die in a state row (x, y, phi, ...)."""
+    return corners(cfg.die.sides, cfg.die.circumradius, state[0], state[1], state[2])
+
+
+def _roll_outcome_text(report):
+    side = "undecided" if report.outcome < 0 else f"side {report.outcome}"
+    return f"{side} after {report.impacts} impacts, {report.t_end:.3f} s"
+
+
+def _draw_roll_scene(ax, cfg, path, report):
+    """Table, walls, centre path, limits and labels shared by the picture and the animation."""
+    radius = cfg.die.circumradius
+    separation = cfg.walls.separation
+    margin = 1.5 * radius
+    if separation is None:
+        xmin, xmax = path[:, 0].min() - margin, path[:, 0].max() + margin
+    else:
+        xmin, xmax = -separation / 2 - margin, separation / 2 + margin
+    ymax = max(path[:, 1].max(), 0.0) + margin
+    ax.axhspan(-margin, 0.0, color="0.85", zorder=0)
+    ax.axhline(0.0, color="0.3", linewidth=1.0)
+    if separation is not None:
+        for wall_x in (-separation / 2, separation / 2):
+            ax.axvline(wall_x, color="0.3", linewidth=1.5)
+    ax.plot(path[:, 0], path[:, 1], color="tab:blue", linewidth=0.8, alpha=0.7)
+    # Autoscaled limits (not fixed ones) let the equal aspect widen the view to fill the axes.
+    ax.update_datalim([(xmin, -margin), (xmax, ymax)])
+    ax.margins(0.0)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_title(_roll_outcome_text(report), fontsize="medium")
+
+
+def _add_die(ax, cfg, state, alpha=1.0):
+    """Draw the die outline with side 0 in the colour of side 0; return (outline, side 0)."""
+    xy = _die_corners(cfg, state)
+    outline = ax.add_patch(Polygon(xy, closed=True, fill=False, edgecolor="black", linewidth=1.0, alpha=alpha))
+    (side0,) = ax.plot(xy[:2, 0], xy[:2, 1], color=outcome_colors(cfg.die.sides)[0], linewidth=2.0, alpha=alpha)
+    return outline, side0
+
+
+def _move_die(artists, cfg, state):
+    outline, side0 = artists
+    xy = _die_corners(cfg, state)
+    outline.set_xy(xy)
+    side0.set_data(xy[:2, 0], xy[:2, 1])
+
+
+def plot_roll(cfg, report, png_path, *, frames=12, dpi=150, path_sampler=None):
+    """Write a picture of one roll like the paper's graphics window (Smith 2014, Fig. 5).
+
+    Parameters
+    ----------
+    cfg : dice_sweep.config.Config
+        The roll's config.
+    report : dice_sweep.roll.RollReport
+        Result of the roll; uses ``t_end`` (s), ``outcome`` and ``impacts``.
+    png_path : str or pathlib.Path
+        PNG to write.
+    frames : int
+        Number of die outlines drawn at equal time intervals from 0 to ``t_end``.
+    dpi : float
+        Pixels per inch.
+    path_sampler : callable, optional
+        ``(cfg, report, times) -> (T, 6)`` states (x, y, phi, vx, vy, omega) of the centre;
+        defaults to :func:`dice_sweep.roll.sample_path`.
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    sampler = path_sampler or _default_path_sampler()
+    intervals = max(frames - 1, 1)
+    times = np.linspace(0.0, report.t_end, intervals * PATH_POINTS_PER_FRAME + 1)
+    path = np.asarray(sampler(cfg, report, times))
+    fig = Figure(figsize=ROLL_FIGSIZE, dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    _draw_roll_scene(ax, cfg, path, report)
+    outline_rows = path[:: PATH_POINTS_PER_FRAME][:frames]
+    for i, state in enumerate(outline_rows):
+        _add_die(ax, cfg, state, alpha=0.25 + 0.75 * (i + 1) / len(outline_rows))  # later = darker
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)
+
+
+def animate_roll(cfg, report, gif_path, *, fps=30, max_frames=MAX_ANIMATION_FRAMES, path_sampler=None):
+    """Write an animated GIF of one roll, one frame every 1/fps s of simulated time.
+
+    A roll longer than ``max_frames / fps`` is subsampled to ``max_frames`` frames spread
+    over the whole roll, so it plays faster than real time.
+
+    Parameters
+    ----------
+    cfg, report, path_sampler
+        As in :func:`plot_roll`.
+    gif_path : str or pathlib.Path
+        GIF to write.
+    fps : float
+        Frames per second of simulated time and of playback.
+    max_frames : int
+        Most frames written.
+
+    Returns
+    -------
+    pathlib.Path
+        ``gif_path``.
+    """
+    sampler = path_sampler or _default_path_sampler()
+    intervals = math.ceil(report.t_end * fps)
+    if intervals < max_frames:
+        times = np.minimum(np.arange(intervals + 1) / fps, report.t_end)  # last frame at rest
+    else:
+        times = np.linspace(0.0, report.t_end, max_frames)
+    path = np.asarray(sampler(cfg, report, times))
+    fig = Figure(figsize=ANIMATION_FIGSIZE, dpi=ANIMATION_DPI, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    _draw_roll_scene(ax, cfg, path, report)
+    die = _add_die(ax, cfg, path[0])
+    # The clock makes every frame differ, so the GIF writer never merges frames of a die at rest.
+    clock = ax.text(0.02, 0.95, "", transform=ax.transAxes, va="top", fontsize="small")
+    writer = PillowWriter(fps=fps)
+    with writer.saving(fig, str(gif_path), dpi=ANIMATION_DPI):
+        for t, state in zip(times, path):
+            _move_die(die, cfg, state)
+            clock.set_text(f"t = {t:.3f} s")
+            writer.grab_frame()
+    return Path(gif_path)
