@@ -1,0 +1,101 @@
+"""One roll from a config: the result, its event tallies, and its path at any time."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dice_sweep.physics import COUNT_COLUMNS, STATUS_NAMES, pack_params
+from dice_sweep.physics.kernel import REC_T, REC_WIDTH, roll_one, sample_records
+
+MAX_RECORDS = 100_000
+
+
+def initial_state(cfg):
+    """The config's initial state as float64[6] in STATE_COLUMNS order (SI)."""
+    i = cfg.initial
+    return np.array([i.x0, i.y0, i.phi0, i.vx0, i.vy0, i.omega0], dtype=float)
+
+
+@dataclass(frozen=True)
+class RollReport:
+    """Result of one roll.
+
+    Attributes
+    ----------
+    outcome : int
+        Side 0..n-1 that the die comes to rest on, -1 when undecided.
+    status : int
+        Index into ``dice_sweep.physics.STATUS_NAMES``; 0 means decided.
+    t_decided : float
+        Simulated time (s) at which the side was decided; NaN when undecided.
+    t_end : float
+        Simulated time (s) at which the simulation stopped.
+    counts : dict
+        Event tallies: impacts, wall_impacts, corner_fallbacks (the paper's law undefined,
+        impulse at the corner used), pivots (sustained-contact phases), energy_clips.
+    records : numpy.ndarray
+        Segment records (see dice_sweep.physics.kernel), to re-create the path.
+    """
+
+    outcome: int
+    status: int
+    t_decided: float
+    t_end: float
+    counts: dict
+    records: np.ndarray
+
+    @property
+    def status_name(self):
+        return STATUS_NAMES[self.status]
+
+    @property
+    def impacts(self):
+        return self.counts["impacts"]
+
+    def to_dict(self):
+        """JSON-ready summary (no records)."""
+        return {
+            "outcome": self.outcome,
+            "status": self.status_name,
+            "status_code": self.status,
+            "impacts": self.impacts,
+            "t_decided": None if np.isnan(self.t_decided) else self.t_decided,
+            "t_end": self.t_end,
+            **{k: v for k, v in self.counts.items() if k != "impacts"},
+        }
+
+
+def roll_config(cfg, state=None):
+    """Simulate the roll of a validated config (its [initial] state unless ``state`` given)."""
+    fpar, ipar = pack_params(cfg)
+    rec = np.zeros((MAX_RECORDS, REC_WIDTH))
+    counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
+    s0 = initial_state(cfg) if state is None else np.asarray(state, dtype=float)
+    outcome, status, t_decided, t_end, n_rec = roll_one(fpar, ipar, s0, rec, counts)
+    return RollReport(
+        outcome=int(outcome),
+        status=int(status),
+        t_decided=float(t_decided),
+        t_end=float(t_end),
+        counts={name: int(c) for name, c in zip(COUNT_COLUMNS, counts)},
+        records=rec[:n_rec].copy(),
+    )
+
+
+def sample_path(cfg, report, times):
+    """State (x, y, phi, vx, vy, omega) of the centre at ``times`` (s) during the roll.
+
+    Times before 0 or after ``report.t_end`` are clipped to the simulated span.
+    """
+    fpar, ipar = pack_params(cfg)
+    t = np.clip(np.sort(np.asarray(times, dtype=float)), 0.0, report.t_end)
+    out = np.zeros((t.size, 6))
+    rec = report.records
+    sample_records(fpar, ipar, rec, rec.shape[0], t, out)
+    return out
+
+
+def impact_times(report):
+    """Times (s) at which a segment starts with an impact (for pictures)."""
+    rec = report.records
+    return rec[1:, REC_T].copy()
