@@ -1,7 +1,11 @@
 """numba kernels of the die: flight, contact, impact laws, pivot phase, outcome rule."""
 
-from dice_sweep.physics.params import pack_params
-from dice_sweep.physics.kernel import (
+from dice_sweep.physics._cache_guard import drop_stale_cache
+
+drop_stale_cache()
+
+from dice_sweep.physics.params import pack_params  # noqa: E402
+from dice_sweep.physics.kernel import (  # noqa: E402
     COUNT_COLUMNS,
     STATE_COLUMNS,
     STATUS_NAMES,
