@@ -1,0 +1,413 @@
+"""The HDF5 layout of a sweep (docs/hdf5.md); the only module that imports h5py.
+
+A sweep file holds one (ny, nx) final-state map per quantity, chunked by tile, plus the axis
+values as dimension scales and root attributes describing the run. Tiles are written one at a
+time and recorded in ``/done_tiles`` only after their data, so a killed run loses at most the
+tiles it was computing, and ``complete`` turns true only once every tile of the shard is in.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+from collections.abc import Mapping
+
+import h5py
+import numpy as np
+
+from dice_sweep import __version__
+from dice_sweep.errors import DiceSweepError
+
+LAYOUT_VERSION = 1  # bump when a dataset or attribute changes meaning
+NOT_COMPUTED = 255  # /status of a cell no tile has written yet
+UNDECIDED = -1  # /outcome of a roll without an answer (and of a cell not computed yet)
+COUNT_MAX = np.iinfo(np.uint16).max  # counters are clipped here
+COUNTS_GROUP = "counts"  # the kernel counters other than impacts live in /counts/<name>
+SHARD_RULE = "tile_index % N == I"
+
+_COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepAxis:
+    """One axis of the map: the swept parameter and its cell centres.
+
+    Attributes
+    ----------
+    param : str
+        Name of the swept initial-condition parameter (``y0``, ``omega0``, ...).
+    unit : str
+        Its SI unit (``m``, ``m/s``, ``rad``, ``rad/s``).
+    values : numpy.ndarray
+        Cell centres, float64, in the parameter's SI unit.
+    lo, hi : float
+        The range [lo, hi] the cells cover (the image extent).
+    """
+
+    param: str
+    unit: str
+    values: np.ndarray
+    lo: float
+    hi: float
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepHeader:
+    """Everything fixed when a sweep file is created.
+
+    Attributes
+    ----------
+    config_toml : str
+        The resolved config (``dice_sweep.config.config_to_toml``).
+    sides : int
+        Number of sides n of the die; outcomes are 0..n-1.
+    x, y : SweepAxis
+        The fast (column) and slow (row) axes.
+    tile_shape : tuple of int
+        (rows, columns) of a tile; edge tiles are clipped.
+    shard : tuple of int
+        (I, N): the file holds the tiles with ``tile_index % N == I``.
+    count_columns : tuple of str
+        Names of the kernel counters; ``impacts`` goes to ``/impacts``, others to ``/counts``.
+    status_names : tuple of str
+        Meaning of the kernel status codes (index = code).
+    dice_sweep_version : str
+        Version of the package that created the file.
+    """
+
+    config_toml: str
+    sides: int
+    x: SweepAxis
+    y: SweepAxis
+    tile_shape: tuple[int, int]
+    shard: tuple[int, int]
+    count_columns: tuple[str, ...]
+    status_names: tuple[str, ...]
+    dice_sweep_version: str = __version__
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(ny, nx) of the maps."""
+        return (len(self.y.values), len(self.x.values))
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepData:
+    """A sweep file read into memory (:func:`read_sweep`).
+
+    Attributes
+    ----------
+    path : str
+        The file read.
+    outcome : numpy.ndarray
+        int8 (ny, nx): side 0..n-1, -1 undecided or not computed.
+    status : numpy.ndarray
+        uint8 (ny, nx): kernel status code (0 decided), 255 not computed.
+    impacts : numpy.ndarray
+        uint16 (ny, nx): table and wall impacts of the roll, clipped at 65535.
+    t_decided : numpy.ndarray
+        float32 (ny, nx): simulated time at which the side was decided, s (NaN if not).
+    counts : dict of str to numpy.ndarray
+        The other kernel counters (uint16, clipped), by name.
+    x, y : SweepAxis
+        Column and row axes (values, parameter, unit, extent).
+    config_toml : str
+        The resolved config of the run.
+    sides : int
+        Number of sides n.
+    complete : bool
+        True only if every tile of the file's shard was written.
+    shard : tuple of int
+        (I, N) of the file; (0, 1) for a whole or merged sweep.
+    status_names : tuple of str
+        Meaning of the status codes below 255.
+    dice_sweep_version, created : str
+        Version that made the file and its creation time (ISO 8601, UTC).
+    """
+
+    path: str
+    outcome: np.ndarray
+    status: np.ndarray
+    impacts: np.ndarray
+    t_decided: np.ndarray
+    counts: dict[str, np.ndarray]
+    x: SweepAxis
+    y: SweepAxis
+    config_toml: str
+    sides: int
+    complete: bool
+    shard: tuple[int, int]
+    status_names: tuple[str, ...]
+    dice_sweep_version: str
+    created: str
+
+    @property
+    def computed(self) -> np.ndarray:
+        """bool (ny, nx): cells some tile has written."""
+        return self.status != NOT_COMPUTED
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """(xmin, xmax, ymin, ymax) of the image, as matplotlib's ``imshow`` takes it."""
+        return (self.x.lo, self.x.hi, self.y.lo, self.y.hi)
+
+
+def _count_dataset(name: str) -> str:
+    return name if name == "impacts" else f"{COUNTS_GROUP}/{name}"
+
+
+def _map_datasets(count_columns) -> dict[str, tuple[np.dtype, object]]:
+    """Dataset path -> (dtype, fill value) of every (ny, nx) map of the layout."""
+    maps = {
+        "outcome": (np.dtype(np.int8), UNDECIDED),
+        "status": (np.dtype(np.uint8), NOT_COMPUTED),
+        "t_decided": (np.dtype(np.float32), np.nan),
+    }
+    for name in count_columns:
+        maps[_count_dataset(name)] = (np.dtype(np.uint16), 0)
+    return maps
+
+
+def rolls_to_maps(count_columns, shape, outcome, status, counts, t_decided) -> dict:
+    """Kernel outputs of a tile (flat, row-major) -> the stored (rows, cols) arrays by dataset.
+
+    Parameters
+    ----------
+    count_columns : sequence of str
+        Names of the columns of ``counts``.
+    shape : tuple of int
+        (rows, cols) of the tile.
+    outcome, status, counts, t_decided : numpy.ndarray
+        ``roll_batch`` outputs for the tile's rolls.
+
+    Returns
+    -------
+    dict of str to numpy.ndarray
+        Dataset path -> array in the stored dtype (counters clipped at 65535, time float32).
+    """
+    maps = {
+        "outcome": outcome.reshape(shape).astype(np.int8, copy=False),
+        "status": status.reshape(shape).astype(np.uint8, copy=False),
+        "t_decided": t_decided.reshape(shape).astype(np.float32),
+    }
+    for column, name in enumerate(count_columns):
+        clipped = np.clip(counts[:, column], 0, COUNT_MAX).astype(np.uint16)
+        maps[_count_dataset(name)] = clipped.reshape(shape)
+    return maps
+
+
+def _utc_now() -> str:
+    return datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+
+
+def _str_tuple(values) -> tuple[str, ...]:
+    return tuple(v.decode() if isinstance(v, bytes) else str(v) for v in values)
+
+
+class SweepFile:
+    """An open sweep file: create it, write tiles, read blocks back, mark it complete.
+
+    Use :meth:`create` or :meth:`open`, preferably in a ``with`` block.
+    """
+
+    def __init__(self, h5file: h5py.File, header: SweepHeader):
+        self._h5 = h5file
+        self.header = header
+        self.path = h5file.filename
+
+    # --- opening -------------------------------------------------------------------------
+
+    @classmethod
+    def create(cls, path, header: SweepHeader, n_tiles: int) -> "SweepFile":
+        """Create a new, empty sweep file; refuse to replace an existing one.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            File to create.
+        header : SweepHeader
+            The run's fixed description.
+        n_tiles : int
+            Number of tiles of the whole grid (length of ``/done_tiles``).
+        """
+        try:
+            h5 = h5py.File(path, "w-")
+        except OSError as error:
+            raise DiceSweepError(f"{path}: cannot create ({error})") from None
+        ny, nx = header.shape
+        chunks = (min(header.tile_shape[0], ny), min(header.tile_shape[1], nx))
+        h5.attrs.update(
+            {
+                "dice_sweep_layout": LAYOUT_VERSION,
+                "config_toml": header.config_toml,
+                "dice_sweep_version": header.dice_sweep_version,
+                "created": _utc_now(),
+                "complete": False,
+                "sides": header.sides,
+                "shard": f"{header.shard[0]}/{header.shard[1]}",
+                "shard_rule": SHARD_RULE,
+                "tile_shape": np.asarray(header.tile_shape, dtype=np.int64),
+                "count_columns": list(header.count_columns),
+            }
+        )
+        for name, axis in (("y", header.y), ("x", header.x)):
+            scale = h5.create_dataset(name, data=np.asarray(axis.values, dtype=np.float64))
+            scale.attrs.update({"param": axis.param, "unit": axis.unit, "min": axis.lo, "max": axis.hi})
+            scale.make_scale(axis.param)
+        for name, (dtype, fill) in _map_datasets(header.count_columns).items():
+            dataset = h5.create_dataset(
+                name, shape=(ny, nx), dtype=dtype, chunks=chunks, fillvalue=fill, **_COMPRESSION
+            )
+            for dim, axis_name in enumerate(("y", "x")):
+                dataset.dims[dim].label = axis_name
+                dataset.dims[dim].attach_scale(h5[axis_name])
+        h5["outcome"].attrs["undecided"] = UNDECIDED
+        h5["status"].attrs.update(
+            {"names": list(header.status_names), "not_computed": NOT_COMPUTED}
+        )
+        h5["t_decided"].attrs["unit"] = "s"
+        h5.create_dataset("done_tiles", shape=(n_tiles,), dtype=np.uint8, fillvalue=0)
+        h5.flush()
+        return cls(h5, header)
+
+    @classmethod
+    def open(cls, path, writable: bool = False) -> "SweepFile":
+        """Open an existing sweep file for reading, or for resuming when ``writable``.
+
+        Raises
+        ------
+        DiceSweepError
+            If the file is missing, damaged or not a dice_sweep sweep file.
+        """
+        try:
+            h5 = h5py.File(path, "r+" if writable else "r")
+        except OSError as error:
+            raise DiceSweepError(
+                f"{path}: cannot open as HDF5 ({error}); if a kill damaged it, remove it and rerun"
+            ) from None
+        try:
+            header = _read_header(h5)
+        except (KeyError, ValueError) as error:
+            h5.close()
+            raise DiceSweepError(f"{path}: not a dice_sweep sweep file ({error})") from None
+        return cls(h5, header)
+
+    def close(self) -> None:
+        """Flush and close the file."""
+        if self._h5.id.valid:
+            self._h5.close()
+
+    def __enter__(self) -> "SweepFile":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    # --- state ---------------------------------------------------------------------------
+
+    @property
+    def complete(self) -> bool:
+        """True once every tile of the shard is written."""
+        return bool(self._h5.attrs["complete"])
+
+    @property
+    def created(self) -> str:
+        """Creation time, ISO 8601 UTC."""
+        return str(self._h5.attrs["created"])
+
+    def done_tiles(self) -> np.ndarray:
+        """bool (n_tiles,): tiles whose data are in the file."""
+        return self._h5["done_tiles"][...].astype(bool)
+
+    # --- data ----------------------------------------------------------------------------
+
+    def write_tile(self, tile_index: int, rows: slice, cols: slice, maps: Mapping) -> None:
+        """Write one tile's arrays (from :func:`rolls_to_maps`), then record it as done.
+
+        The data go first and the bookkeeping last, then a flush: a kill at any point leaves
+        the tile either recorded with its data or not recorded at all.
+        """
+        for name, values in maps.items():
+            self._h5[name][rows, cols] = values
+        self._h5["done_tiles"][tile_index] = 1
+        self._h5.flush()
+
+    def read_block(self, rows: slice, cols: slice) -> dict[str, np.ndarray]:
+        """Stored arrays of a block, by dataset path (the form :meth:`write_tile` takes)."""
+        names = _map_datasets(self.header.count_columns)
+        return {name: self._h5[name][rows, cols] for name in names}
+
+    def mark_complete(self) -> None:
+        """Set the ``complete`` attribute (call only when every tile of the shard is done)."""
+        self._h5.attrs["complete"] = True
+        self._h5.flush()
+
+    def read(self) -> SweepData:
+        """All maps and the description, in memory."""
+        h5 = self._h5
+        header = self.header
+        extra = [name for name in header.count_columns if name != "impacts"]
+        return SweepData(
+            path=str(self.path),
+            outcome=h5["outcome"][...],
+            status=h5["status"][...],
+            impacts=h5["impacts"][...],
+            t_decided=h5["t_decided"][...],
+            counts={name: h5[_count_dataset(name)][...] for name in extra},
+            x=header.x,
+            y=header.y,
+            config_toml=header.config_toml,
+            sides=header.sides,
+            complete=self.complete,
+            shard=header.shard,
+            status_names=header.status_names,
+            dice_sweep_version=header.dice_sweep_version,
+            created=self.created,
+        )
+
+
+def _read_axis(dataset: h5py.Dataset) -> SweepAxis:
+    attrs = dataset.attrs
+    return SweepAxis(
+        param=str(attrs["param"]),
+        unit=str(attrs["unit"]),
+        values=dataset[...],
+        lo=float(attrs["min"]),
+        hi=float(attrs["max"]),
+    )
+
+
+def _read_header(h5: h5py.File) -> SweepHeader:
+    attrs = h5.attrs
+    layout = int(attrs["dice_sweep_layout"])
+    if layout != LAYOUT_VERSION:
+        raise ValueError(f"layout version {layout}, this dice_sweep reads {LAYOUT_VERSION}")
+    shard_index, shard_count = (int(part) for part in str(attrs["shard"]).split("/"))
+    return SweepHeader(
+        config_toml=str(attrs["config_toml"]),
+        sides=int(attrs["sides"]),
+        x=_read_axis(h5["x"]),
+        y=_read_axis(h5["y"]),
+        tile_shape=tuple(int(v) for v in attrs["tile_shape"]),
+        shard=(shard_index, shard_count),
+        count_columns=_str_tuple(attrs["count_columns"]),
+        status_names=_str_tuple(h5["status"].attrs["names"]),
+        dice_sweep_version=str(attrs["dice_sweep_version"]),
+    )
+
+
+def read_sweep(path) -> SweepData:
+    """Read a sweep file (complete or not) into memory.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file written by ``dice-sweep sweep`` or ``dice-sweep merge``.
+
+    Returns
+    -------
+    SweepData
+        Maps, axes with parameters and units, config, ``complete`` flag and ``sides``.
+    """
+    with SweepFile.open(path) as sweep_file:
+        return sweep_file.read()

@@ -1,0 +1,660 @@
+"""Sweeps of a grid of initial conditions: tiles, worker processes, shards, resume and merge.
+
+The (ny, nx) grid is cut into tiles of ``tile_shape`` cells (clipped at the edges), numbered
+row-major. Shard I of N holds the tiles with ``tile_index % N == I``: interleaved rather than
+contiguous so that every shard gets its share of the expensive (chaotic) regions. Each tile is
+one ``roll_batch`` call; a roll's result depends only on its own initial state, so the maps are
+bitwise identical for any worker count, shard split and tile order.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import dataclasses
+import multiprocessing
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from dice_sweep.config import PARAM_UNITS, config_to_toml
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.physics import COUNT_COLUMNS, STATE_COLUMNS, STATUS_NAMES, pack_params, roll_batch
+from dice_sweep.storage import SweepAxis, SweepFile, SweepHeader, rolls_to_maps
+
+DEFAULT_TILE_SHAPE = (64, 64)
+
+
+class SweepInterrupted(DiceSweepError):
+    """The user stopped a sweep (Ctrl-C); what was written is kept and can be resumed.
+
+    The CLI exits with code 130 (the shell's code for SIGINT) instead of 2.
+    """
+
+
+@dataclasses.dataclass(frozen=True)
+class SweepSummary:
+    """What a call to :func:`run_sweep` or :func:`merge_parts` did.
+
+    Attributes
+    ----------
+    path : str
+        The HDF5 file written.
+    shape : tuple of int
+        (ny, nx) of the whole grid.
+    shard : tuple of int
+        (I, N) of the file.
+    rolls_computed : int
+        Rolls simulated by this call (0 for a merge or an already complete file).
+    rolls_in_shard : int
+        Rolls the file holds when complete.
+    seconds : float
+        Wall time of the call, s.
+    complete : bool
+        True if every tile of the shard is in the file.
+    already_complete : bool
+        True if the call found the file complete and did nothing.
+    merged_parts : int
+        Number of shard files a merge joined (0 for a sweep).
+    """
+
+    path: str
+    shape: tuple[int, int]
+    shard: tuple[int, int]
+    rolls_computed: int
+    rolls_in_shard: int
+    seconds: float
+    complete: bool
+    already_complete: bool = False
+    merged_parts: int = 0
+
+    def describe(self) -> str:
+        """One line for the user."""
+        ny, nx = self.shape
+        where = f"{self.path} ({ny} x {nx}, shard {self.shard[0]}/{self.shard[1]})"
+        if self.already_complete:
+            return f"{where} is already complete; nothing to do"
+        if self.merged_parts:
+            return f"{where}: merged {self.merged_parts} parts in {self.seconds:.1f} s, complete"
+        rate = self.rolls_computed / self.seconds if self.seconds > 0 else 0.0
+        state = "complete" if self.complete else "NOT complete"
+        return (
+            f"{where}: {self.rolls_computed} rolls in {self.seconds:.1f} s "
+            f"({rate:.0f} rolls/s), {state}"
+        )
+
+
+# --- grid --------------------------------------------------------------------------------
+
+
+def axis_values(axis) -> np.ndarray:
+    """Cell centres ``min + (i + 0.5) (max - min) / num`` of a grid axis.
+
+    The one formula is ``dice_sweep.config.Axis.values``; every module that needs the grid's
+    values goes through it, so that all agree bitwise.
+
+    Parameters
+    ----------
+    axis : dice_sweep.config.Axis
+        ``param``, ``min``, ``max`` (in the parameter's SI unit) and ``num`` cells.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 (num,).
+    """
+    return np.asarray(axis.values(), dtype=np.float64)
+
+
+def _grid_states(base_state, x_column, xs, y_column, ys) -> np.ndarray:
+    """Rows of ``base_state`` with column ``x_column`` running fast over xs, ``y_column`` slow."""
+    states = np.empty((len(ys) * len(xs), len(STATE_COLUMNS)))
+    states[:] = base_state
+    states[:, x_column] = np.tile(xs, len(ys))
+    states[:, y_column] = np.repeat(ys, len(xs))
+    return states
+
+
+def _base_state(cfg) -> np.ndarray:
+    return np.array([getattr(cfg.initial, name) for name in STATE_COLUMNS], dtype=np.float64)
+
+
+def _require_grid(cfg):
+    if cfg.grid is None:
+        raise DiceSweepError(f"{cfg.source}: grid: the config has no [grid] section to sweep")
+    return cfg.grid
+
+
+def initial_states(cfg, xs, ys) -> np.ndarray:
+    """Initial states of the grid cells with axis values xs (fast) and ys (slow).
+
+    Parameters
+    ----------
+    cfg : dice_sweep.config.Config
+        Gives the swept parameters (``cfg.grid``) and the unswept ones (``cfg.initial``).
+    xs, ys : array_like
+        Values of ``cfg.grid.x.param`` and ``cfg.grid.y.param``.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 (len(ys) * len(xs), 6), columns ``STATE_COLUMNS``, row-major (y slow, x fast).
+    """
+    grid = _require_grid(cfg)
+    return _grid_states(
+        _base_state(cfg),
+        STATE_COLUMNS.index(grid.x.param),
+        np.asarray(xs, dtype=np.float64),
+        STATE_COLUMNS.index(grid.y.param),
+        np.asarray(ys, dtype=np.float64),
+    )
+
+
+@dataclasses.dataclass(frozen=True)
+class TileGrid:
+    """A (ny, nx) grid cut into tiles of ``tile_shape`` (clipped at the edges), row-major."""
+
+    shape: tuple[int, int]
+    tile_shape: tuple[int, int]
+
+    def __post_init__(self):
+        if min(self.tile_shape) < 1:
+            raise DiceSweepError(f"tile shape {self.tile_shape}: need at least 1 x 1 cells")
+
+    @property
+    def tiles_per_row(self) -> int:
+        """Number of tile columns."""
+        return -(-self.shape[1] // self.tile_shape[1])
+
+    @property
+    def count(self) -> int:
+        """Number of tiles."""
+        return -(-self.shape[0] // self.tile_shape[0]) * self.tiles_per_row
+
+    def bounds(self, index: int) -> tuple[slice, slice]:
+        """(rows, cols) slices of tile ``index``."""
+        tile_row, tile_col = divmod(index, self.tiles_per_row)
+        rows = slice(tile_row * self.tile_shape[0], min((tile_row + 1) * self.tile_shape[0], self.shape[0]))
+        cols = slice(tile_col * self.tile_shape[1], min((tile_col + 1) * self.tile_shape[1], self.shape[1]))
+        return rows, cols
+
+    def size(self, index: int) -> int:
+        """Number of cells of tile ``index``."""
+        rows, cols = self.bounds(index)
+        return (rows.stop - rows.start) * (cols.stop - cols.start)
+
+    def shard_tiles(self, shard: tuple[int, int]) -> list[int]:
+        """Indices of the tiles of shard (I, N): those with ``index % N == I``."""
+        shard_index, shard_count = shard
+        return list(range(shard_index, self.count, shard_count))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SweepJob:
+    """Everything a worker needs to compute any tile of a sweep (picklable, config-free).
+
+    Build it with :meth:`from_config`.
+    """
+
+    fpar: np.ndarray
+    ipar: np.ndarray
+    base_state: np.ndarray
+    x_column: int
+    xs: np.ndarray
+    y_column: int
+    ys: np.ndarray
+    tiles: TileGrid
+
+    @classmethod
+    def from_config(cls, cfg, tile_shape=DEFAULT_TILE_SHAPE) -> "SweepJob":
+        """The job of ``cfg``'s grid cut into tiles of ``tile_shape``."""
+        grid = _require_grid(cfg)
+        fpar, ipar = pack_params(cfg)
+        xs, ys = axis_values(grid.x), axis_values(grid.y)
+        return cls(
+            fpar=fpar,
+            ipar=ipar,
+            base_state=_base_state(cfg),
+            x_column=STATE_COLUMNS.index(grid.x.param),
+            xs=xs,
+            y_column=STATE_COLUMNS.index(grid.y.param),
+            ys=ys,
+            tiles=TileGrid((len(ys), len(xs)), tuple(tile_shape)),
+        )
+
+    def roll(self, states: np.ndarray) -> tuple[np.ndarray, ...]:
+        """``roll_batch`` on ``states``: (outcome, status, counts, t_decided)."""
+        n_rolls = len(states)
+        outcome = np.empty(n_rolls, np.int8)
+        status = np.empty(n_rolls, np.uint8)
+        counts = np.empty((n_rolls, len(COUNT_COLUMNS)), np.int32)
+        t_decided = np.empty(n_rolls)
+        roll_batch(self.fpar, self.ipar, states, outcome, status, counts, t_decided)
+        return outcome, status, counts, t_decided
+
+    def compute_tile(self, index: int) -> dict[str, np.ndarray]:
+        """Roll every cell of tile ``index``; the stored maps by dataset (``rolls_to_maps``)."""
+        rows, cols = self.tiles.bounds(index)
+        states = _grid_states(self.base_state, self.x_column, self.xs[cols], self.y_column, self.ys[rows])
+        shape = (rows.stop - rows.start, cols.stop - cols.start)
+        return rolls_to_maps(COUNT_COLUMNS, shape, *self.roll(states))
+
+    def warm_up(self) -> None:
+        """Compile (or load) the kernel in this process with a one-roll batch."""
+        self.roll(self.base_state[np.newaxis, :].copy())
+
+
+# --- worker processes --------------------------------------------------------------------
+
+_worker_job: SweepJob | None = None
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+_STOP_POLL_SECONDS = 0.2  # how often the parent looks for Ctrl-C while workers compute
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    # A parent killed by SIGKILL cannot stop its workers, which would wait for work forever;
+    # on Linux the kernel can kill them when the parent goes.
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent_pid:  # the parent died before prctl took effect
+        os._exit(1)
+
+
+def _init_worker(job: SweepJob, parent_pid: int) -> None:
+    # Ctrl-C reaches the whole process group; only the parent handles it (by stopping us).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent_pid)
+    global _worker_job
+    _worker_job = job
+
+
+def _compute_in_worker(index: int) -> tuple[int, dict[str, np.ndarray]]:
+    return index, _worker_job.compute_tile(index)
+
+
+def _process_context():
+    # fork shares the kernel compiled in the parent; elsewhere (macOS, Windows) spawn is safe.
+    method = "fork" if sys.platform.startswith("linux") else "spawn"
+    return multiprocessing.get_context(method)
+
+
+def _terminate_workers(executor: ProcessPoolExecutor) -> None:
+    terminate = getattr(executor, "terminate_workers", None)  # Python >= 3.14
+    if terminate is not None:
+        terminate()
+        return
+    # Before 3.14 only the private process table reaches the workers; shutdown() clears it.
+    processes = list((getattr(executor, "_processes", None) or {}).values())
+    for process in processes:
+        process.terminate()
+    executor.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        process.join()
+
+
+class _StopRequest:
+    """Ctrl-C as a flag, checked between tiles, while a sweep runs in the main thread.
+
+    A KeyboardInterrupt raised at an arbitrary point can land in a weakref callback, where
+    Python ignores it, or in the middle of an HDF5 write; a flag acts only where we look at
+    it. A second Ctrl-C goes to the previous handler and so acts at once.
+    """
+
+    def __init__(self):
+        self.requested = False
+        self._installed = False
+        self._previous = signal.SIG_DFL
+
+    def __enter__(self) -> "_StopRequest":
+        if threading.current_thread() is threading.main_thread():
+            previous = signal.signal(signal.SIGINT, self._handle)
+            self._previous = signal.SIG_DFL if previous is None else previous
+            self._installed = True
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        self.requested = True
+        signal.signal(signal.SIGINT, self._previous)
+
+    def __exit__(self, *exc_info) -> None:
+        if self._installed:
+            signal.signal(signal.SIGINT, self._previous)
+
+
+@contextlib.contextmanager
+def _tile_results(job: SweepJob, todo: Sequence[int], workers: int, stop: _StopRequest):
+    """Yield an iterator of (tile index, maps) in completion order, computed by ``workers``.
+
+    One worker computes in this process. The iterator ends early once ``stop`` is requested.
+    On any exception in the ``with`` body the workers are terminated at once rather than
+    left to finish their tiles.
+    """
+    if workers == 1 or len(todo) <= 1:
+        yield ((index, job.compute_tile(index)) for index in todo if not stop.requested)
+        return
+    executor = ProcessPoolExecutor(
+        max_workers=min(workers, len(todo)),
+        mp_context=_process_context(),
+        initializer=_init_worker,
+        initargs=(job, os.getpid()),
+    )
+    try:
+        pending = {executor.submit(_compute_in_worker, index) for index in todo}
+        yield _completed(pending, stop)
+    except BaseException:
+        _terminate_workers(executor)
+        raise
+    executor.shutdown()
+
+
+def _completed(pending: set, stop: _StopRequest) -> Iterator:
+    # Drop each future as it is consumed so that finished tiles are not all kept in memory.
+    while pending and not stop.requested:
+        finished, _ = wait(pending, timeout=_STOP_POLL_SECONDS, return_when=FIRST_COMPLETED)
+        for future in finished:
+            if stop.requested:  # stop at once: tiles computed but not yet written are lost
+                return
+            pending.discard(future)
+            yield future.result()
+
+
+# --- sweep -------------------------------------------------------------------------------
+
+
+def parse_shard(text: str) -> tuple[int, int]:
+    """``"I/N"`` -> (I, N), with 0 <= I < N.
+
+    Parameters
+    ----------
+    text : str
+        The ``--shard`` argument.
+
+    Returns
+    -------
+    tuple of int
+        (I, N).
+
+    Raises
+    ------
+    DiceSweepError
+        If the text is not of that form.
+    """
+    try:
+        shard_index, shard_count = (int(part) for part in text.split("/"))
+    except ValueError:
+        raise DiceSweepError(f"--shard {text!r}: expected I/N, e.g. 0/4") from None
+    return _check_shard((shard_index, shard_count))
+
+
+def _check_shard(shard) -> tuple[int, int]:
+    shard_index, shard_count = (int(value) for value in shard)
+    if shard_count < 1 or not 0 <= shard_index < shard_count:
+        raise DiceSweepError(f"--shard {shard_index}/{shard_count}: need 0 <= I < N")
+    return shard_index, shard_count
+
+
+def default_workers() -> int:
+    """Default worker count: the cores this process may use.
+
+    The CPU affinity mask, where the OS has one, rather than ``os.cpu_count()``: under SLURM,
+    taskset or a container limit it is what the job was given.
+
+    Returns
+    -------
+    int
+    """
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
+def _sweep_axis(axis, values) -> SweepAxis:
+    return SweepAxis(axis.param, PARAM_UNITS[axis.param], values, float(axis.min), float(axis.max))
+
+
+def _sweep_header(cfg, job: SweepJob, shard) -> SweepHeader:
+    grid = cfg.grid
+    return SweepHeader(
+        config_toml=config_to_toml(cfg),
+        sides=cfg.die.sides,
+        x=_sweep_axis(grid.x, job.xs),
+        y=_sweep_axis(grid.y, job.ys),
+        tile_shape=job.tiles.tile_shape,
+        shard=shard,
+        count_columns=COUNT_COLUMNS,
+        status_names=STATUS_NAMES,
+    )
+
+
+def _first_difference(text_a: str, text_b: str) -> str:
+    """'A-line' vs 'B-line' of the first line where two texts differ."""
+    lines_a, lines_b = text_a.splitlines(), text_b.splitlines()
+    for line_a, line_b in zip(lines_a + [""] * len(lines_b), lines_b + [""] * len(lines_a)):
+        if line_a != line_b:
+            return f"{line_a.strip() or '(nothing)'!r} vs {line_b.strip() or '(nothing)'!r}"
+    return "no line differs"
+
+
+def _run_mismatch(mine: SweepHeader, theirs: SweepHeader) -> str | None:
+    """Why two headers are not of the same run (None if they are)."""
+    if mine.config_toml != theirs.config_toml:
+        return f"another config ({_first_difference(mine.config_toml, theirs.config_toml)})"
+    if mine.dice_sweep_version != theirs.dice_sweep_version:
+        return f"dice_sweep {mine.dice_sweep_version} vs {theirs.dice_sweep_version}"
+    if tuple(mine.tile_shape) != tuple(theirs.tile_shape):
+        return f"tile shape {mine.tile_shape} vs {theirs.tile_shape}"
+    if set(mine.count_columns) != set(theirs.count_columns):
+        return f"kernel counters {mine.count_columns} vs {theirs.count_columns}"
+    return None
+
+
+def _check_resumable(path, in_file: SweepHeader, wanted: SweepHeader) -> None:
+    reason = _run_mismatch(in_file, wanted)
+    if reason is None and in_file.shard != wanted.shard:
+        reason = f"shard {in_file.shard[0]}/{in_file.shard[1]} vs {wanted.shard[0]}/{wanted.shard[1]}"
+    if reason is not None:
+        raise DiceSweepError(
+            f"{path}: cannot resume, the file is of a different run (file vs now: {reason}); "
+            "use another output file or remove it"
+        )
+
+
+def run_sweep(
+    cfg,
+    out_path,
+    *,
+    workers: int | None = None,
+    shard: tuple[int, int] = (0, 1),
+    resume: bool = False,
+    progress: bool = True,
+    tile_shape: tuple[int, int] = DEFAULT_TILE_SHAPE,
+    on_tile: Callable[[int, int], None] | None = None,
+) -> SweepSummary:
+    """Roll every cell of ``cfg.grid`` (or of one shard of it) and write the maps to HDF5.
+
+    Parameters
+    ----------
+    cfg : dice_sweep.config.Config
+        Validated config with a ``grid``.
+    out_path : str or os.PathLike
+        HDF5 file to write (layout: docs/hdf5.md). Must not exist unless ``resume``.
+    workers : int, optional
+        Worker processes; default all cores this process may use. 1 computes in-process.
+    shard : tuple of int
+        (I, N): compute only the tiles with ``tile_index % N == I``.
+    resume : bool
+        Continue the file ``out_path`` of the same config and shard, computing only the tiles
+        it lacks (a missing file is started afresh; a complete one is left alone).
+    progress : bool
+        Show a tqdm bar on stderr (only when stderr is a terminal).
+    tile_shape : tuple of int
+        (rows, cols) of a tile: the unit of work, of HDF5 chunking and of resume.
+    on_tile : callable, optional
+        Called as ``on_tile(tile_index, rolls_computed)`` after each tile is written and
+        flushed (``rolls_computed`` counts this call's rolls so far).
+
+    Returns
+    -------
+    SweepSummary
+
+    Raises
+    ------
+    DiceSweepError
+        On a bad argument, an existing file without ``resume``, or a file of another run.
+    SweepInterrupted
+        On Ctrl-C, after stopping the workers; the written tiles are kept.
+    """
+    started = time.perf_counter()
+    _require_grid(cfg)
+    shard = _check_shard(shard)
+    workers = default_workers() if workers is None else int(workers)
+    if workers < 1:
+        raise DiceSweepError(f"--workers {workers}: need at least 1")
+    job = SweepJob.from_config(cfg, tile_shape)
+    header = _sweep_header(cfg, job, shard)
+    path = Path(out_path)
+    tiles = job.tiles
+    shard_tiles = tiles.shard_tiles(shard)
+    rolls_in_shard = sum(tiles.size(index) for index in shard_tiles)
+
+    def summary(rolls_computed, complete, already_complete=False):
+        return SweepSummary(
+            str(path), tiles.shape, shard, rolls_computed, rolls_in_shard,
+            time.perf_counter() - started, complete, already_complete,
+        )
+
+    resuming = path.exists()
+    if resuming and not resume:
+        raise DiceSweepError(f"{path}: exists; use --resume or remove it")
+    if not path.parent.is_dir():  # say so now, not after compiling and forking
+        raise DiceSweepError(f"{path}: folder {path.parent} does not exist")
+    done = np.zeros(tiles.count, dtype=bool)
+    if resuming:
+        with SweepFile.open(path) as existing:
+            _check_resumable(path, existing.header, header)
+            if existing.complete:
+                return summary(0, True, already_complete=True)
+            done = existing.done_tiles()
+    todo = [index for index in shard_tiles if not done[index]]
+    rolls_todo = sum(tiles.size(index) for index in todo)
+
+    rolls_computed = 0
+    try:
+        job.warm_up()  # before forking, so that every worker inherits the compiled kernel
+        with (
+            _StopRequest() as stop,  # before forking: workers never see the default handler
+            _tile_results(job, todo, workers, stop) as results,
+            _open_output(path, header, tiles.count, resuming) as sweep_file,
+            tqdm(
+                total=rolls_in_shard, initial=rolls_in_shard - rolls_todo, unit=" rolls",
+                unit_scale=True, desc=path.name, file=sys.stderr,
+                disable=not (progress and sys.stderr.isatty()),
+            ) as bar,
+        ):
+            for index, maps in results:
+                sweep_file.write_tile(index, *tiles.bounds(index), maps)
+                rolls_computed += tiles.size(index)
+                bar.update(tiles.size(index))
+                if on_tile is not None:
+                    on_tile(index, rolls_computed)
+            complete = bool(sweep_file.done_tiles()[shard_tiles].all())
+            if complete:
+                sweep_file.mark_complete()
+            elif stop.requested:
+                raise KeyboardInterrupt  # inside the with: the workers are terminated
+    except KeyboardInterrupt:
+        raise SweepInterrupted(
+            f"{path}: interrupted after {rolls_computed} of {rolls_todo} rolls (what is written "
+            "is kept); run the same command with --resume to finish it"
+        ) from None
+    return summary(rolls_computed, complete)
+
+
+def _open_output(path, header: SweepHeader, n_tiles: int, resuming: bool) -> SweepFile:
+    if resuming:
+        return SweepFile.open(path, writable=True)
+    return SweepFile.create(path, header, n_tiles)
+
+
+# --- merge -------------------------------------------------------------------------------
+
+
+def _check_parts(parts: Sequence[SweepFile]) -> None:
+    """Refuse parts of different runs, incomplete parts, and overlapping or missing shards."""
+    first = parts[0]
+    shard_count = first.header.shard[1]
+    owners: dict[int, str] = {}
+    for part in parts:
+        reason = _run_mismatch(first.header, part.header)
+        if reason is not None:
+            raise DiceSweepError(f"{part.path}: not a part of the same sweep as {first.path} ({reason})")
+        shard_index, count = part.header.shard
+        if count != shard_count:
+            raise DiceSweepError(
+                f"{part.path}: shard {shard_index}/{count}, but {first.path} is one of {shard_count} shards"
+            )
+        if not part.complete:
+            raise DiceSweepError(f"{part.path}: not complete; finish it with --resume first")
+        if shard_index in owners:
+            raise DiceSweepError(
+                f"{owners[shard_index]} and {part.path} are both shard {shard_index}/{shard_count}"
+            )
+        owners[shard_index] = str(part.path)
+    missing = [f"{index}/{shard_count}" for index in range(shard_count) if index not in owners]
+    if missing:
+        raise DiceSweepError(f"merge: shards missing: {', '.join(missing)}")
+
+
+def merge_parts(part_paths: Sequence, out_path) -> SweepSummary:
+    """Join the complete shard files of one sweep into one complete file.
+
+    Parameters
+    ----------
+    part_paths : sequence of str or os.PathLike
+        One file per shard I/N, I = 0..N-1, all of the same config.
+    out_path : str or os.PathLike
+        The merged file to create; its maps equal those of an unsharded run, bitwise.
+
+    Returns
+    -------
+    SweepSummary
+
+    Raises
+    ------
+    DiceSweepError
+        If ``out_path`` exists, or the parts are of different runs, incomplete, overlapping
+        or leave shards missing.
+    """
+    started = time.perf_counter()
+    if not part_paths:
+        raise DiceSweepError("merge: no part files given")
+    path = Path(out_path)
+    if path.exists():
+        raise DiceSweepError(f"{path}: exists; remove it or choose another output file")
+    with contextlib.ExitStack() as stack:
+        parts = [stack.enter_context(SweepFile.open(part_path)) for part_path in part_paths]
+        _check_parts(parts)
+        header = dataclasses.replace(parts[0].header, shard=(0, 1))
+        tiles = TileGrid(header.shape, header.tile_shape)
+        with SweepFile.create(path, header, tiles.count) as merged:
+            for part in parts:
+                for index in tiles.shard_tiles(part.header.shard):
+                    bounds = tiles.bounds(index)
+                    merged.write_tile(index, *bounds, part.read_block(*bounds))
+            merged.mark_complete()
+    n_rolls = tiles.shape[0] * tiles.shape[1]
+    seconds = time.perf_counter() - started
+    return SweepSummary(str(path), tiles.shape, (0, 1), 0, n_rolls, seconds, True, merged_parts=len(parts))

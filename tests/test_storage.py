@@ -1,0 +1,159 @@
+"""Tests of dice_sweep.storage: the HDF5 layout of docs/hdf5.md, read back with plain h5py."""
+
+import pathlib
+import re
+
+import h5py
+import numpy as np
+import pytest
+
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.storage import (
+    COUNT_MAX,
+    NOT_COMPUTED,
+    SweepAxis,
+    SweepFile,
+    SweepHeader,
+    read_sweep,
+    rolls_to_maps,
+)
+
+DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs" / "hdf5.md"
+COUNT_COLUMNS = ("impacts", "wall_impacts", "pivots")
+TILE = (2, 3)
+# a 3 x 5 map in tiles of 2 x 3: tiles 0 1 (rows 0-1), 2 3 (row 2, clipped)
+TILE_BOUNDS = {
+    0: (slice(0, 2), slice(0, 3)),
+    1: (slice(0, 2), slice(3, 5)),
+    2: (slice(2, 3), slice(0, 3)),
+    3: (slice(2, 3), slice(3, 5)),
+}
+
+
+def make_header(**changes):
+    fields = dict(
+        config_toml='[die]\nsides = 5\n',
+        sides=5,
+        x=SweepAxis("vx0", "m/s", np.array([-0.8, -0.4, 0.0, 0.4, 0.8]), -1.0, 1.0),
+        y=SweepAxis("y0", "m", np.array([0.05, 0.15, 0.25]), 0.0, 0.3),
+        tile_shape=TILE,
+        shard=(0, 1),
+        count_columns=COUNT_COLUMNS,
+        status_names=("decided", "t_max"),
+    )
+    fields.update(changes)
+    return SweepHeader(**fields)
+
+
+def tile_maps(index):
+    """Distinct synthetic kernel outputs for tile ``index``, as the stored maps."""
+    rows, cols = TILE_BOUNDS[index]
+    shape = (rows.stop - rows.start, cols.stop - cols.start)
+    n = shape[0] * shape[1]
+    rng = np.random.default_rng(index)
+    outcome = rng.integers(-1, 5, n).astype(np.int8)
+    status = (outcome < 0).astype(np.uint8)
+    counts = rng.integers(0, 100, (n, len(COUNT_COLUMNS))).astype(np.int32)
+    t_decided = np.where(outcome < 0, np.nan, rng.uniform(0.1, 3.0, n))
+    return rolls_to_maps(COUNT_COLUMNS, shape, outcome, status, counts, t_decided)
+
+
+def write_file(path, tiles=TILE_BOUNDS, complete=True):
+    with SweepFile.create(path, make_header(), n_tiles=len(TILE_BOUNDS)) as sweep_file:
+        for index in tiles:
+            sweep_file.write_tile(index, *TILE_BOUNDS[index], tile_maps(index))
+        if complete:
+            sweep_file.mark_complete()
+
+
+def test_round_trip_gives_back_every_map_axis_and_attribute(tmp_path):
+    path = tmp_path / "sweep.h5"
+    write_file(path)
+    data = read_sweep(path)
+    for index, (rows, cols) in TILE_BOUNDS.items():
+        maps = tile_maps(index)
+        assert np.array_equal(data.outcome[rows, cols], maps["outcome"])
+        assert np.array_equal(data.status[rows, cols], maps["status"])
+        assert np.array_equal(data.impacts[rows, cols], maps["impacts"])
+        assert np.array_equal(data.t_decided[rows, cols], maps["t_decided"], equal_nan=True)
+        assert np.array_equal(data.counts["pivots"][rows, cols], maps["counts/pivots"])
+    assert data.outcome.dtype == np.int8 and data.status.dtype == np.uint8
+    assert data.impacts.dtype == np.uint16 and data.t_decided.dtype == np.float32
+    assert sorted(data.counts) == ["pivots", "wall_impacts"]
+    assert data.complete and data.computed.all()
+    assert data.sides == 5 and data.shard == (0, 1)
+    assert data.config_toml == make_header().config_toml
+    assert data.status_names == ("decided", "t_max")
+    assert (data.x.param, data.x.unit, data.y.param, data.y.unit) == ("vx0", "m/s", "y0", "m")
+    assert np.array_equal(data.y.values, [0.05, 0.15, 0.25])
+    assert data.extent == (-1.0, 1.0, 0.0, 0.3)
+    assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00", data.created)
+
+
+def test_unwritten_tiles_read_as_not_computed_and_file_as_incomplete(tmp_path):
+    path = tmp_path / "sweep.h5"
+    write_file(path, tiles=[1, 2], complete=False)
+    data = read_sweep(path)
+    assert not data.complete
+    assert data.computed[TILE_BOUNDS[1]].all() and data.computed[TILE_BOUNDS[2]].all()
+    for index in (0, 3):
+        block = TILE_BOUNDS[index]
+        assert (data.status[block] == NOT_COMPUTED).all()
+        assert (data.outcome[block] == -1).all() and np.isnan(data.t_decided[block]).all()
+    with SweepFile.open(path) as sweep_file:
+        assert sweep_file.done_tiles().tolist() == [False, True, True, False]
+
+
+def test_counts_are_clipped_to_uint16():
+    counts = np.array([[70000, -1, 5]], dtype=np.int32)
+    maps = rolls_to_maps(COUNT_COLUMNS, (1, 1), np.zeros(1), np.zeros(1), counts, np.zeros(1))
+    assert maps["impacts"][0, 0] == COUNT_MAX and maps["counts/wall_impacts"][0, 0] == 0
+    assert maps["counts/pivots"][0, 0] == 5
+
+
+def test_plain_h5py_sees_documented_layout_and_dimension_scales(tmp_path):
+    path = tmp_path / "sweep.h5"
+    write_file(path)
+    with h5py.File(path, "r") as h5:
+        assert h5.attrs["complete"] and h5.attrs["shard"] == "0/1"
+        assert list(h5.attrs["tile_shape"]) == list(TILE)
+        assert h5["done_tiles"][...].tolist() == [1, 1, 1, 1]
+        for name in ("outcome", "status", "impacts", "t_decided", "counts/wall_impacts"):
+            dataset = h5[name]
+            assert dataset.shape == (3, 5) and dataset.chunks == TILE
+            assert dataset.compression == "gzip"
+            assert dataset.dims[0]["y0"] == h5["y"] and dataset.dims[1]["vx0"] == h5["x"]
+            assert (dataset.dims[0].label, dataset.dims[1].label) == ("y", "x")
+        for name, param, unit in (("x", "vx0", "m/s"), ("y", "y0", "m")):
+            assert h5[name].is_scale
+            assert (h5[name].attrs["param"], h5[name].attrs["unit"]) == (param, unit)
+        assert h5["status"].fillvalue == NOT_COMPUTED
+        assert h5["t_decided"].attrs["unit"] == "s"
+
+
+def test_create_refuses_an_existing_file(tmp_path):
+    path = tmp_path / "sweep.h5"
+    path.write_bytes(b"precious")
+    with pytest.raises(DiceSweepError, match="cannot create"):
+        SweepFile.create(path, make_header(), n_tiles=4)
+    assert path.read_bytes() == b"precious"
+
+
+def test_open_refuses_files_that_are_not_sweeps(tmp_path):
+    text_file = tmp_path / "notes.h5"
+    text_file.write_text("not HDF5")
+    with pytest.raises(DiceSweepError, match="cannot open as HDF5"):
+        read_sweep(text_file)
+    other_hdf5 = tmp_path / "other.h5"
+    with h5py.File(other_hdf5, "w") as h5:
+        h5["data"] = np.zeros(3)
+    with pytest.raises(DiceSweepError, match="not a dice_sweep sweep file"):
+        read_sweep(other_hdf5)
+
+
+def test_reading_example_of_the_docs_runs(tmp_path, monkeypatch, capsys):
+    write_file(tmp_path / "sweep.h5")
+    example = re.search(r"```python\n(.*?)```", DOCS.read_text(), re.S).group(1)
+    monkeypatch.chdir(tmp_path)
+    exec(compile(example, str(DOCS), "exec"), {})
+    assert "vx0" in capsys.readouterr().out
