@@ -21,6 +21,9 @@ demo: $(STAMP)
 	$(BIN)/dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png
 	@echo "demo: final-state diagram written to out/demo.png (data in out/demo.h5)"
 
+figures: $(STAMP)
+	$(BIN)/python scripts/make_figures.py
+
 bench: $(STAMP)
 	$(BIN)/python scripts/bench_kernel.py
 
