@@ -214,6 +214,9 @@ class SweepFile:
         self._h5 = h5file
         self.header = header
         self.path = h5file.filename
+        # looking a dataset up by name costs as much as writing a tile's worth of it
+        names = [*_map_datasets(header.count_columns), "done_tiles"]
+        self._datasets = {name: h5file[name] for name in names}
 
     # --- opening -------------------------------------------------------------------------
 
@@ -286,11 +289,10 @@ class SweepFile:
                 f"{path}: cannot open as HDF5 ({error}); if a kill damaged it, remove it and rerun"
             ) from None
         try:
-            header = _read_header(h5)
+            return cls(h5, _read_header(h5))
         except (KeyError, ValueError) as error:
             h5.close()
             raise DiceSweepError(f"{path}: not a dice_sweep sweep file ({error})") from None
-        return cls(h5, header)
 
     def close(self) -> None:
         """Flush and close the file."""
@@ -317,7 +319,7 @@ class SweepFile:
 
     def done_tiles(self) -> np.ndarray:
         """bool (n_tiles,): tiles whose data are in the file."""
-        return self._h5["done_tiles"][...].astype(bool)
+        return self._datasets["done_tiles"][...].astype(bool)
 
     # --- data ----------------------------------------------------------------------------
 
@@ -328,14 +330,14 @@ class SweepFile:
         the tile either recorded with its data or not recorded at all.
         """
         for name, values in maps.items():
-            self._h5[name][rows, cols] = values
-        self._h5["done_tiles"][tile_index] = 1
+            self._datasets[name][rows, cols] = values
+        self._datasets["done_tiles"][tile_index] = 1
         self._h5.flush()
 
     def read_block(self, rows: slice, cols: slice) -> dict[str, np.ndarray]:
         """Stored arrays of a block, by dataset path (the form :meth:`write_tile` takes)."""
         names = _map_datasets(self.header.count_columns)
-        return {name: self._h5[name][rows, cols] for name in names}
+        return {name: self._datasets[name][rows, cols] for name in names}
 
     def mark_complete(self) -> None:
         """Set the ``complete`` attribute (call only when every tile of the shard is done)."""

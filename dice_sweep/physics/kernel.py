@@ -127,20 +127,32 @@ def _set_pivot_state(s, px, chi, omega, corner, n, radius):
 
 
 @numba.njit(cache=True)
-def _roll_event(fpar, ipar, s, rec, counts):
-    n = ipar[IP_N]
-    radius = fpar[FP_R]
+def _unpack(fpar, ipar):
+    """(n, R, g, beta_n, beta_t, half_width, t_max, alpha, decision barrier) of a roll."""
     g = fpar[FP_G]
-    beta_n = fpar[FP_BN]
-    beta_t = fpar[FP_BT]
-    half_width = fpar[FP_WALL]
-    t_max = fpar[FP_TMAX]
-    alpha = fpar[FP_ALPHA]
+    radius = fpar[FP_R]
+    barrier = g * radius * (1.0 - DECISION_MARGIN)
+    return (ipar[IP_N], radius, g, fpar[FP_BN], fpar[FP_BT], fpar[FP_WALL], fpar[FP_TMAX],
+            fpar[FP_ALPHA], barrier)
+
+
+@numba.njit(cache=True)
+def _impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts):
+    """Resolve one impact and tally it; returns the corner's normal velocity after (m/s)."""
+    u_n = resolve_impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts)
+    counts[C_IMPACTS] += 1
+    if surf != SURF_TABLE:
+        counts[C_WALL] += 1
+    return u_n
+
+
+@numba.njit(cache=True)
+def _roll_event(fpar, ipar, s, rec, counts):
+    n, radius, g, beta_n, beta_t, half_width, t_max, alpha, barrier = _unpack(fpar, ipar)
     tol = GAP_TOL * radius
     min_step = MIN_STEP * math.sqrt(radius / g)
     contact_speed = CONTACT_SPEED * math.sqrt(g * radius)
     stick_speed = math.sqrt(2.0 * g * radius * STICK_HEIGHT)
-    barrier = g * radius * (1.0 - DECISION_MARGIN)
     start = np.empty(6)
     hit = np.zeros(2, dtype=np.int64)
     out = np.zeros(3)
@@ -180,10 +192,7 @@ def _roll_event(fpar, ipar, s, rec, counts):
                 continue
             surf = hit[0]
             corner = (corner + hit[1]) % n
-        u_n = resolve_impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts)
-        counts[C_IMPACTS] += 1
-        if surf != SURF_TABLE:
-            counts[C_WALL] += 1
+        u_n = _impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts)
         pivoting = surf == SURF_TABLE and u_n < stick_speed
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
@@ -208,17 +217,9 @@ def _roll_event(fpar, ipar, s, rec, counts):
 def _roll_fixed_step(fpar, ipar, s, rec, counts):
     """The paper's scheme: exact flight over steps of dt, a collision applied when a corner is
     found inside a surface and moving further in at the end of a step (no pivot phase)."""
-    n = ipar[IP_N]
-    radius = fpar[FP_R]
-    g = fpar[FP_G]
-    beta_n = fpar[FP_BN]
-    beta_t = fpar[FP_BT]
-    half_width = fpar[FP_WALL]
-    t_max = fpar[FP_TMAX]
-    alpha = fpar[FP_ALPHA]
+    n, radius, g, beta_n, beta_t, half_width, t_max, alpha, barrier = _unpack(fpar, ipar)
     dt = fpar[FP_DT]
     n_surf = 1 if math.isinf(half_width) else 3
-    barrier = g * radius * (1.0 - DECISION_MARGIN)
     start = np.empty(6)
     t = 0.0
     nrec = _record(rec, 0, t, SEG_FLIGHT, s, -1, 0.0, 0.0, specific_energy(s, alpha, radius, g), EVENT_START)
@@ -246,10 +247,7 @@ def _roll_fixed_step(fpar, ipar, s, rec, counts):
                         corner = k
         if corner < 0:
             continue
-        resolve_impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts)
-        counts[C_IMPACTS] += 1
-        if surf != SURF_TABLE:
-            counts[C_WALL] += 1
+        _impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts)
         impacts += 1
         energy = specific_energy(s, alpha, radius, g)
         if energy < barrier:
