@@ -321,6 +321,10 @@ class SweepFile:
         """bool (n_tiles,): tiles whose data are in the file."""
         return self._datasets["done_tiles"][...].astype(bool)
 
+    def computed(self) -> np.ndarray:
+        """bool (ny, nx): cells whose ``/status`` is not 255 (not computed)."""
+        return self._datasets["status"][...] != NOT_COMPUTED
+
     # --- data ----------------------------------------------------------------------------
 
     def write_tile(self, tile_index: int, rows: slice, cols: slice, maps: Mapping) -> None:

@@ -547,7 +547,7 @@ def run_sweep(
             _check_resumable(path, existing.header, header)
             if existing.complete:
                 return summary(0, True, already_complete=True)
-            done = existing.done_tiles()
+            done = _tiles_written(existing, tiles)
     todo = [index for index in shard_tiles if not done[index]]
     rolls_todo = sum(tiles.size(index) for index in todo)
 
@@ -581,6 +581,16 @@ def run_sweep(
             "is kept); run the same command with --resume to finish it"
         ) from None
     return summary(rolls_computed, complete)
+
+
+def _tiles_written(sweep_file: SweepFile, tiles: TileGrid) -> np.ndarray:
+    """Tiles recorded as done whose cells all hold data.
+
+    HDF5 does not promise in which order buffered writes reach the disk, so after a kill a
+    tile could be recorded without its data; such a tile is computed again.
+    """
+    recorded, computed = sweep_file.done_tiles(), sweep_file.computed()
+    return np.array([recorded[i] and computed[tiles.bounds(i)].all() for i in range(tiles.count)], dtype=bool)
 
 
 def _open_output(path, header: SweepHeader, n_tiles: int, resuming: bool) -> SweepFile:

@@ -9,6 +9,7 @@ import signal
 import subprocess
 import sys
 
+import h5py
 import numpy as np
 import pytest
 
@@ -330,3 +331,14 @@ def test_ctrl_c_stops_parent_and_workers_cleanly(cfg, reference, tmp_path):
 def test_summary_describes_the_run():
     summary = SweepSummary("out.h5", (7, 10), (1, 2), 30, 30, 1.5, True)
     assert summary.describe() == "out.h5 (7 x 10, shard 1/2): 30 rolls in 1.5 s (20 rolls/s), complete"
+
+
+def test_resume_recomputes_a_tile_recorded_without_its_data(cfg, reference, tmp_path):
+    path = tmp_path / "torn.h5"
+    sweep(cfg, path, workers=1)
+    with h5py.File(path, "r+") as h5:  # damage it as an unordered write-back could
+        h5.attrs["complete"] = False
+        h5["status"][0:3, 4:8] = NOT_COMPUTED  # tile 1 still recorded in /done_tiles
+    summary = sweep(cfg, path, workers=1, resume=True)
+    assert summary.complete and summary.rolls_computed == 12
+    assert_same_maps(read_sweep(path), reference)
