@@ -6,9 +6,12 @@ beta_tangential = -0.35, beta_normal = 0.2, dt = 0.001 s, R = 1.9/sqrt(2) cm):
 .. code-block:: toml
 
     [die]        # sides = 4, circumradius = 0.013435 (m)
-    [contact]    # model = "paper", beta_normal = 0.2, beta_tangential = -0.35
+    [contact]    # model = "paper" | "rigid", beta_normal = 0.2, beta_tangential = -0.35,
+                 # friction = inf (Coulomb coefficient)
     [walls]      # separation = 0.20 (m); no [walls] section: no walls
     [initial]    # x0 = 0, y0 = 0.1 (m), phi0 = 0 (rad), vx0 = vy0 = 0 (m/s), omega0 = 10 (rad/s)
+    [effects]    # air_drag = 0 (1/m), com_offset = [0, 0] (m), speed_restitution = 0 (s/m),
+                 # gravity = 0 (m/s^2; 0: off, world.g applies); all off by default
     [world]      # g = 9.81 (m/s^2)
     [integrator] # method = "event" | "fixed_step", dt = 0.001 (s), t_max = 30 (s), max_events
     [grid]       # x = { param, min, max, num }, y = { ... }; no [grid]: a single roll
@@ -37,6 +40,7 @@ __all__ = [
     "Initial",
     "World",
     "Integrator",
+    "Effects",
     "Axis",
     "Grid",
     "Config",
@@ -50,7 +54,7 @@ __all__ = [
     "default_config",
 ]
 
-CONTACT_MODELS = ("paper",)
+CONTACT_MODELS = ("paper", "rigid")
 INTEGRATOR_METHODS = ("event", "fixed_step")
 GRID_PARAMS = ("y0", "omega0", "vx0", "vy0", "phi0", "x0")
 PARAM_UNITS = {"x0": "m", "y0": "m", "phi0": "rad", "vx0": "m/s", "vy0": "m/s", "omega0": "rad/s"}
@@ -71,11 +75,28 @@ class Die:
 
 @dataclass(frozen=True)
 class Contact:
-    """Contact law: ``model`` name, ``beta_normal`` in [0, 1], ``beta_tangential`` in [-1, 1]."""
+    """Contact law: ``model`` ("paper" or "rigid"), ``beta_normal`` in [0, 1],
+    ``beta_tangential`` in [-1, 1], Coulomb ``friction`` coefficient in [0, inf] (inf: no cap)."""
 
     model: str
     beta_normal: float
     beta_tangential: float
+    friction: float
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Optional physics, all off by default (docs/physics.md).
+
+    ``air_drag`` c (1/m): a = -c |v| v on the centre of mass; ``com_offset`` (dx, dy) (m): centre
+    of mass offset from the geometric centre in the body frame (a loaded die); ``speed_restitution``
+    k (s/m): beta_normal / (1 + k |u_n|); ``gravity`` (m/s^2): replaces world.g when above 0.
+    """
+
+    air_drag: float
+    com_offset: tuple
+    speed_restitution: float
+    gravity: float
 
 
 @dataclass(frozen=True)
@@ -153,6 +174,7 @@ class Config:
     world: World
     integrator: Integrator
     grid: Grid | None
+    effects: Effects = None  # filled by the loader; None only for hand-built configs
     source: str = field(default="<string>", compare=False)
 
     def with_initial(self, **values):
@@ -182,6 +204,8 @@ class _Spec:
     low_open: bool = False  # True: the value must be above ``low``, not equal to it
     choices: tuple = ()
     unit: str = ""
+    allow_inf: bool = False  # +inf is a meaningful value (an uncapped friction)
+    length: int = 0  # > 0: an array of this many numbers
 
 
 def _positive(default, unit):
@@ -197,6 +221,7 @@ _SECTION_SPECS = {
         "model": _Spec(str, "paper", choices=CONTACT_MODELS),
         "beta_normal": _Spec(float, 0.2, low=0.0, high=1.0),
         "beta_tangential": _Spec(float, -0.35, low=-1.0, high=1.0),
+        "friction": _Spec(float, math.inf, low=0.0, allow_inf=True),
     },
     "walls": {"separation": _positive(0.20, "m")},
     "initial": {
@@ -206,6 +231,12 @@ _SECTION_SPECS = {
         "vx0": _Spec(float, 0.0, unit="m/s"),
         "vy0": _Spec(float, 0.0, unit="m/s"),
         "omega0": _Spec(float, 10.0, unit="rad/s"),
+    },
+    "effects": {
+        "air_drag": _Spec(float, 0.0, low=0.0, unit="1/m"),
+        "com_offset": _Spec(float, (0.0, 0.0), unit="m", length=2),
+        "speed_restitution": _Spec(float, 0.0, low=0.0, unit="s/m"),
+        "gravity": _Spec(float, 0.0, low=0.0, unit="m/s^2"),
     },
     "world": {"g": _positive(9.81, "m/s^2")},
     "integrator": {
@@ -222,6 +253,7 @@ _SECTION_CLASSES = {
     "initial": Initial,
     "world": World,
     "integrator": Integrator,
+    "effects": Effects,
 }
 _AXIS_SPECS = {
     "param": _Spec(str, choices=GRID_PARAMS),
@@ -312,6 +344,11 @@ class _Checker:
 
     def value(self, value, key, spec):
         """Check one value against its spec; return it converted (int -> float for float keys)."""
+        if spec.length:
+            if not isinstance(value, list) or len(value) != spec.length:
+                raise self.error(key, f"expected an array of {spec.length} numbers, got {_type_name(value)} {value!r} ({_allowed(spec)})")
+            item_spec = dataclasses.replace(spec, length=0)
+            return tuple(self.value(item, key, item_spec) for item in value)
         if spec.kind is str:
             if not isinstance(value, str):
                 raise self.error(key, f"expected a string, got {_type_name(value)} {value!r} ({_allowed(spec)})")
@@ -325,7 +362,7 @@ class _Checker:
             value = spec.kind(value)
         except OverflowError:  # an integer too large for a float
             value = math.inf
-        if not math.isfinite(value):
+        if not math.isfinite(value) and not (spec.allow_inf and value == math.inf):
             raise self.error(key, f"{value!r} is not a finite number ({_allowed(spec)})")
         below = value <= spec.low if spec.low_open else value < spec.low
         if below or value > spec.high:
@@ -344,8 +381,8 @@ def _allowed(spec):
     if spec.kind is str:
         return "allowed: a string"
     interval = f"{'(' if spec.low_open or spec.low == -math.inf else '['}{_fmt(spec.low)}, {_fmt(spec.high)}"
-    interval += "]" if spec.high < math.inf else ")"
-    kind = ", an integer" if spec.kind is int else ""
+    interval += "]" if spec.high < math.inf or spec.allow_inf else ")"
+    kind = ", an integer" if spec.kind is int else f", {spec.length} numbers" if spec.length else ""
     return f"allowed range {interval}{' ' + spec.unit if spec.unit else ''}{kind}"
 
 
@@ -480,6 +517,10 @@ def _build(raw, checker):
     if walls.separation is not None and walls.separation <= 2.0 * die.circumradius:
         wider = dataclasses.replace(_SECTION_SPECS["walls"]["separation"], low=2.0 * die.circumradius)
         raise checker.error("walls.separation", f"{walls.separation!r} is outside the {_allowed(wider)} (more than twice the circumradius)")
+    offset = sections["effects"].com_offset
+    apothem = float(geometry.apothem(die.sides, die.circumradius))
+    if math.hypot(*offset) >= apothem:
+        raise checker.error("effects.com_offset", f"{list(offset)!r} m is not inside the die (allowed: |offset| < apothem = {_fmt(apothem)} m)")
     grid = _grid(checker.table(raw, ("grid",), required=False), checker)
     _check_starts_clear(die, walls, sections["initial"], grid, checker)
     return Config(**sections, grid=grid, source=checker.source)
@@ -559,6 +600,8 @@ def _toml_value(value):
     """One TOML value: repr for floats (round-trips exactly), JSON quoting for strings."""
     if isinstance(value, str):
         return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, tuple):
+        return "[" + ", ".join(_toml_value(item) for item in value) + "]"
     if isinstance(value, Axis):
         items = (f"{name} = {_toml_value(getattr(value, name))}" for name in _AXIS_SPECS)
         return "{ " + ", ".join(items) + " }"

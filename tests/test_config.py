@@ -114,7 +114,11 @@ BAD_CONFIGS = [
     ("[contact]\nbeta_normal = -0.1", "contact.beta_normal", "allowed range [0, 1]"),
     ("[contact]\nbeta_tangential = -1.5", "contact.beta_tangential", "allowed range [-1, 1]"),
     ("[contact]\nbeta_norml = 0.5", "contact.beta_norml", "did you mean 'beta_normal'?"),
-    ("[contact]\nmodel = \"rigid\"", "contact.model", "allowed values: paper"),
+    ("[contact]\nmodel = \"elastic\"", "contact.model", "allowed values: paper, rigid"),
+    ("[contact]\nfriction = -0.1", "contact.friction", "allowed range [0, inf]"),
+    ("[effects]\ncom_offset = [0.02, 0.0]", "effects.com_offset", "|offset| < apothem"),
+    ("[effects]\ncom_offset = [0.001]", "effects.com_offset", "2 numbers"),
+    ("[effects]\nair_drag = -1.0", "effects.air_drag", "allowed range [0, inf) 1/m"),
     ("[contct]\nbeta_normal = 0.5", "contct", "did you mean 'contact'?"),
     ("[zzz]\nq = 1", "zzz", "allowed sections: die, contact, walls"),
     ("sides = 4", "sides", "unknown section"),
@@ -341,7 +345,7 @@ def test_malformed_override_names_set_and_the_key(override, key, fragment):
 def test_written_config_has_every_key():
     cfg = parse_config("[walls]\n" + GRID)
     written = tomllib.loads(config_to_toml(cfg))
-    assert set(written) == {"die", "contact", "walls", "initial", "world", "integrator", "grid"}
+    assert set(written) == {"die", "contact", "walls", "initial", "world", "integrator", "effects", "grid"}
     assert set(written["initial"]) == {"x0", "y0", "phi0", "vx0", "vy0", "omega0"}
     assert written["grid"]["x"] == {"param": "omega0", "min": 0.0, "max": 60.0, "num": 8}
     assert written["die"]["circumradius"] == R

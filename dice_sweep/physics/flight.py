@@ -1,14 +1,20 @@
-"""Free flight (Smith 2014, eqs 6-8) and exact contact detection.
+"""Free flight (Smith 2014, eqs 6-8), flight with air drag, and exact contact detection.
 
-Flight is evaluated in closed form from the state at the start of the flight segment, never
-accumulated step by step, so a long flight has no drift. Contacts are found by conservative
-advancement: for every corner and surface the gap obeys an exact quadratic lower bound
+Without drag, flight is evaluated in closed form from the state at the start of the flight
+segment, never accumulated step by step. With quadratic drag (a = -c |v| v on the centre of
+mass) there is no closed form: the translation is integrated by classical Runge-Kutta steps
+with step-doubling error control (position error below DRAG_TOL R per step); the rotation
+stays exact (drag exerts no torque about the centre of mass).
 
-    gap(t + s) >= gap(t) + gap'(t) s - M2 s^2 / 2,   M2 = |n . a_centre| + R omega^2,
+Contacts are found by conservative advancement: for every corner and surface the gap obeys a
+quadratic lower bound
 
-so stepping to the first root of that bound can never pass a contact. Near a root the step
-is a Newton step taken from the safe side, which converges quadratically; a corner is never
-inside a surface by more than round-off.
+    gap(t + s) >= gap(t) + gap'(t) s - M2 s^2 / 2,   M2 = max |n . a_com| + rho_k omega^2,
+
+so stepping to the first root of that bound can never pass a contact. Near a root the step is
+a Newton step taken from the safe side, which converges quadratically; a corner is never
+inside a surface by more than round-off. With drag the steps are also the integration steps,
+so the contact is located to the same precision as without it.
 
 Surfaces: 0 = table (y = 0, normal +y), 1 = left wall (x = -L, normal +x), 2 = right wall
 (x = +L, normal -x), with L half the wall separation (inf: no walls).
@@ -17,6 +23,17 @@ Surfaces: 0 = table (y = 0, normal +y), 1 = left wall (x = -L, normal +x), 2 = r
 import math
 
 import numba
+import numpy as np
+
+from dice_sweep.physics.params import (
+    CORNER_STRIDE,
+    FP_CORNERS,
+    FP_DRAG,
+    FP_G,
+    FP_RHO_MAX,
+    FP_WALL,
+    IP_N,
+)
 
 SURF_TABLE = 0
 SURF_LEFT = 1
@@ -25,7 +42,9 @@ SURF_RIGHT = 2
 NO_CONTACT = -1.0  # no contact before the horizon
 STALLED = -2.0  # the search did not converge within MAX_SEARCH_STEPS
 
-MAX_SEARCH_STEPS = 20000
+MAX_SEARCH_STEPS = 200000
+DRAG_TOL = 1e-13  # x R: position error allowed per Runge-Kutta step with drag
+DRAG_MAX_STEP = 1e-3  # s: longest Runge-Kutta step with drag
 
 
 @numba.njit(cache=True)
@@ -39,14 +58,86 @@ def surface_frame(surf, half_width):
 
 
 @numba.njit(cache=True)
+def corner_offset(fpar, corner, cos_phi, sin_phi):
+    """Vector (m) from the centre of mass to ``corner`` at body angle phi."""
+    base = FP_CORNERS + CORNER_STRIDE * corner
+    rho = fpar[base]
+    cg = fpar[base + 1]
+    sg = fpar[base + 2]
+    return rho * (cos_phi * cg - sin_phi * sg), rho * (sin_phi * cg + cos_phi * sg)
+
+
+@numba.njit(cache=True)
 def flight_state(s0, tau, g, out):
-    """State after a free flight of ``tau`` seconds from ``s0`` = (x, y, phi, vx, vy, omega)."""
+    """State after a drag-free flight of ``tau`` seconds from ``s0`` = (x, y, phi, vx, vy, omega)."""
     out[0] = s0[0] + s0[3] * tau
     out[1] = s0[1] + s0[4] * tau - 0.5 * g * tau * tau
     out[2] = s0[2] + s0[5] * tau
     out[3] = s0[3]
     out[4] = s0[4] - g * tau
     out[5] = s0[5]
+
+
+@numba.njit(cache=True)
+def _rk4_drag(s, h, g, c, out):
+    """One classical Runge-Kutta step of the translation with drag; rotation exact."""
+    x, y, vx, vy = s[0], s[1], s[3], s[4]
+    sp = math.sqrt(vx * vx + vy * vy)
+    k1x, k1y, k1u, k1v = vx, vy, -c * sp * vx, -g - c * sp * vy
+    ux, uy = vx + 0.5 * h * k1u, vy + 0.5 * h * k1v
+    sp = math.sqrt(ux * ux + uy * uy)
+    k2x, k2y, k2u, k2v = ux, uy, -c * sp * ux, -g - c * sp * uy
+    ux, uy = vx + 0.5 * h * k2u, vy + 0.5 * h * k2v
+    sp = math.sqrt(ux * ux + uy * uy)
+    k3x, k3y, k3u, k3v = ux, uy, -c * sp * ux, -g - c * sp * uy
+    ux, uy = vx + h * k3u, vy + h * k3v
+    sp = math.sqrt(ux * ux + uy * uy)
+    k4x, k4y, k4u, k4v = ux, uy, -c * sp * ux, -g - c * sp * uy
+    out[0] = x + h * (k1x + 2.0 * k2x + 2.0 * k3x + k4x) / 6.0
+    out[1] = y + h * (k1y + 2.0 * k2y + 2.0 * k3y + k4y) / 6.0
+    out[2] = s[2] + s[5] * h
+    out[3] = vx + h * (k1u + 2.0 * k2u + 2.0 * k3u + k4u) / 6.0
+    out[4] = vy + h * (k1v + 2.0 * k2v + 2.0 * k3v + k4v) / 6.0
+    out[5] = s[5]
+
+
+@numba.njit(cache=True)
+def drag_step(s, h, g, c, tol, out, work):
+    """Step of length h with error control by step doubling; returns the error estimate (m).
+
+    ``out`` gets the two-half-steps result improved by Richardson extrapolation.
+    """
+    _rk4_drag(s, h, g, c, work[0])
+    _rk4_drag(s, 0.5 * h, g, c, work[1])
+    _rk4_drag(work[1], 0.5 * h, g, c, out)
+    err = max(abs(out[0] - work[0, 0]), abs(out[1] - work[0, 1])) / 15.0
+    for i in (0, 1, 3, 4):
+        out[i] += (out[i] - work[0, i]) / 15.0
+    return err
+
+
+@numba.njit(cache=True)
+def advance_flight(s0, tau, fpar, out):
+    """State after a flight of ``tau`` seconds (with drag if any); for sampling paths."""
+    g = fpar[FP_G]
+    c = fpar[FP_DRAG]
+    if c == 0.0:
+        flight_state(s0, tau, g, out)
+        return
+    work = np.empty((2, 6))
+    cur = s0.copy()
+    done = 0.0
+    h = DRAG_MAX_STEP
+    tol = DRAG_TOL * fpar[FP_RHO_MAX]
+    while done < tau:
+        h = min(h, tau - done)
+        if drag_step(cur, h, g, c, tol, out, work) > tol and h > 1e-9:
+            h *= 0.5
+            continue
+        cur[:] = out
+        done += h
+        h = min(2.0 * h, DRAG_MAX_STEP)
+    out[:] = cur
 
 
 @numba.njit(cache=True)
@@ -67,17 +158,61 @@ def safe_step(f, fp, m2):
 
 
 @numba.njit(cache=True)
-def next_contact(s0, n, radius, g, half_width, tau_max, tol, min_step, contact_speed, hit):
-    """Time of the next corner contact in free flight from state ``s0``.
+def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, hit):
+    """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now."""
+    half_width = fpar[FP_WALL]
+    rho_max = fpar[FP_RHO_MAX]
+    omega = s[5]
+    cphi = math.cos(s[2])
+    sphi = math.sin(s[2])
+    step = math.inf
+    best_corner = -1
+    best_rate = 0.0
+    for surf in range(n_surf):
+        nx, ny, d = surface_frame(surf, half_width)
+        h = d + nx * s[0] + ny * s[1]  # distance of the centre of mass from the surface
+        hv = nx * s[3] + ny * s[4]
+        accel = accel_table if surf == SURF_TABLE else accel_wall
+        if h - rho_max > 1e-6 * rho_max:
+            # No corner reaches the surface before the COM is within rho_max of it. (The
+            # margin keeps this shortcut from taking round-off-sized steps near h = rho_max.)
+            step = min(step, safe_step(h - rho_max, hv, accel))
+            continue
+        for k in range(n):
+            base = FP_CORNERS + CORNER_STRIDE * k
+            rho = fpar[base]
+            rx = rho * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
+            ry = rho * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
+            f = h + nx * rx + ny * ry
+            fp = hv + omega * (ny * rx - nx * ry)
+            m2 = accel + rho * omega * omega
+            if f <= tol:
+                if fp < -contact_speed:
+                    if best_corner < 0 or fp < best_rate:
+                        hit[0] = surf
+                        hit[1] = k
+                        best_corner = k
+                        best_rate = fp
+                elif m2 > 0.0:
+                    step = min(step, max(2.0 * max(fp, 0.0) / m2, min_step))
+                else:
+                    step = min(step, math.inf if fp > 0.0 else min_step)
+            else:
+                step = min(step, safe_step(f, fp, m2))
+    if best_corner >= 0:
+        return -1.0
+    return step
+
+
+@numba.njit(cache=True)
+def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out):
+    """Time of the next corner contact in flight from state ``s0``.
 
     Parameters
     ----------
     s0 : float64[6]
-        State (x, y, phi, vx, vy, omega) at the start of the flight, SI.
-    n : int
-        Number of sides.
-    radius, g, half_width : float
-        Circumradius (m), gravity (m/s^2), half the wall separation (m, inf: no walls).
+        State (x, y, phi, vx, vy, omega) of the centre of mass at the start of the flight, SI.
+    fpar, ipar : parameter vectors (dice_sweep.physics.params).
     tau_max : float
         Horizon (s).
     tol : float
@@ -90,6 +225,8 @@ def next_contact(s0, n, radius, g, half_width, tau_max, tol, min_step, contact_s
         rest, not an impact (a corner just released by a pivot must not re-hit at once).
     hit : int64[2]
         Output: surface and corner of the contact.
+    out : float64[6]
+        Output: the state at the contact (or where the search stopped).
 
     Returns
     -------
@@ -97,58 +234,41 @@ def next_contact(s0, n, radius, g, half_width, tau_max, tol, min_step, contact_s
         Contact time (s) from the start, ``NO_CONTACT`` if none before ``tau_max``,
         ``STALLED`` if the search did not converge.
     """
-    n_surf = 1 if math.isinf(half_width) else 3
-    dtheta = 2.0 * math.pi / n
-    cos_dt = math.cos(dtheta)
-    sin_dt = math.sin(dtheta)
-    omega = s0[5]
-    rot_m2 = radius * omega * omega
+    n = ipar[IP_N]
+    g = fpar[FP_G]
+    c = fpar[FP_DRAG]
+    n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
+    out[:] = s0
     tau = 0.0
+    if c == 0.0:
+        for _ in range(MAX_SEARCH_STEPS):
+            step = _scan(out, fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit)
+            if step < 0.0:
+                return tau
+            if tau + step > tau_max:
+                return NO_CONTACT
+            tau += step
+            flight_state(s0, tau, g, out)
+        return STALLED
+    work = np.empty((2, 6))
+    trial = np.empty(6)
+    h_ode = DRAG_MAX_STEP
+    ode_tol = DRAG_TOL * fpar[FP_RHO_MAX]
     for _ in range(MAX_SEARCH_STEPS):
-        x = s0[0] + s0[3] * tau
-        y = s0[1] + s0[4] * tau - 0.5 * g * tau * tau
-        phi = s0[2] + omega * tau
-        vx = s0[3]
-        vy = s0[4] - g * tau
-        step = math.inf
-        best_surf = -1
-        best_corner = -1
-        best_rate = 0.0
-        for surf in range(n_surf):
-            nx, ny, d = surface_frame(surf, half_width)
-            h = d + nx * x + ny * y  # distance of the centre from the surface
-            hv = nx * vx + ny * vy
-            ha = abs(ny) * g
-            if h - radius > 1e-6 * radius:
-                # No corner reaches the surface before the centre is within R of it. (The
-                # margin keeps this shortcut from taking round-off-sized steps near h = R.)
-                step = min(step, safe_step(h - radius, hv, ha))
-                continue
-            m2 = ha + rot_m2
-            ck = math.cos(phi)
-            sk = math.sin(phi)
-            for k in range(n):
-                f = h + radius * (nx * ck + ny * sk)
-                fp = hv + radius * omega * (ny * ck - nx * sk)
-                if f <= tol:
-                    if fp < -contact_speed:
-                        if best_corner < 0 or fp < best_rate:
-                            best_surf = surf
-                            best_corner = k
-                            best_rate = fp
-                    elif m2 > 0.0:
-                        step = min(step, max(2.0 * max(fp, 0.0) / m2, min_step))
-                    else:
-                        step = min(step, math.inf if fp > 0.0 else min_step)
-                else:
-                    step = min(step, safe_step(f, fp, m2))
-                # rotate the corner direction by 2 pi / n instead of calling cos/sin again
-                ck, sk = ck * cos_dt - sk * sin_dt, sk * cos_dt + ck * sin_dt
-        if best_corner >= 0:
-            hit[0] = best_surf
-            hit[1] = best_corner
+        # bound |a| over the next h_ode: speed can grow by at most g h_ode meanwhile
+        speed = math.hypot(out[3], out[4]) + g * h_ode
+        drag_accel = c * speed * speed
+        step = _scan(out, fpar, n, n_surf, g + drag_accel, drag_accel, tol, min_step, contact_speed, hit)
+        if step < 0.0:
             return tau
-        if tau + step > tau_max:
+        h = min(step, h_ode)
+        if tau + h > tau_max:
             return NO_CONTACT
-        tau += step
+        if drag_step(out, h, g, c, ode_tol, trial, work) > ode_tol and h > 1e-9:
+            h_ode = 0.5 * h
+            continue
+        out[:] = trial
+        tau += h
+        if h == h_ode:
+            h_ode = min(2.0 * h_ode, DRAG_MAX_STEP)
     return STALLED

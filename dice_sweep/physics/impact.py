@@ -6,41 +6,56 @@ law (Smith 2014, eqs 9-13) takes the same form on every surface, which is what m
 walls mirror images of each other (the paper's literal "replace vx by vy" is the right wall's
 frame only; tests/physics/test_impact.py::test_walls_are_mirror_images caught it).
 
-``corner_impulse`` is the impulse at the actual corner (Newton restitution on the corner's
-normal velocity, a tangential target -beta_t u_t) through the 2 x 2 contact mass matrix
-K = 1 + r_perp r_perp^T / I. A tangential target at an off-centre corner can create kinetic
-energy (Kane's and Stronge's examples); the energy change of an impulse is exactly
-dT = (u'^T K^-1 u' - u^T K^-1 u) / 2, so the law checks it and, when it is positive or the
-normal impulse would pull, moves the tangential target towards the frictionless one just as
-far as needed (an "energy clip").
+``corner_impulse`` is the impulse P at the actual corner r (from the centre of mass) through
+the contact mass matrix K = 1 + r_perp r_perp^T / I (per unit mass): Newton restitution on the
+corner's normal velocity, u_n' = -beta_n u_n, the tangential target u_t' = -beta_t u_t, and a
+Coulomb cap |P_t| <= mu P_n whose sliding branch is P_t = -sign(u_t) mu P_n with P_n from the
+normal condition (Stronge 2000; Brach 1991). Such laws can create kinetic energy at an
+off-centre corner (Kane's and Stronge's examples). The energy change of an impulse is exactly
+dT = P . u + P^T K P / 2, so the law checks it and, when it is positive or the normal impulse
+would pull, moves the impulse towards the frictionless one (a purely normal impulse meeting
+the same normal condition, which never gains energy) just as far as needed: an "energy clip".
+Every impulse on that segment meets the normal condition and lies inside the friction cone.
 """
 
 import math
 
 import numba
 
-from dice_sweep.physics.flight import surface_frame
+from dice_sweep.physics.flight import corner_offset, surface_frame
+from dice_sweep.physics.params import (
+    FP_ALPHA,
+    FP_BN,
+    FP_BT,
+    FP_G,
+    FP_INERTIA,
+    FP_KSR,
+    FP_MU,
+    FP_R,
+    FP_WALL,
+    IP_MODEL,
+    MODEL_PAPER,
+)
 
-IMPACT_PAPER = 0  # the paper's law was used
-IMPACT_CORNER = 1  # the paper's law was undefined here: impulse at the corner
+C_FALLBACK = 2  # column of counts: paper's law undefined, impulse at the corner used
+C_CLIPS = 4  # column of counts: energy clips
 
 
 @numba.njit(cache=True)
-def specific_energy(s, alpha, radius, g):
-    """Mechanical energy per unit mass (J/kg) of state s, the table at y = 0."""
-    return 0.5 * (s[3] * s[3] + s[4] * s[4]) + 0.5 * alpha * radius * radius * s[5] * s[5] + g * s[1]
+def specific_energy(s, fpar):
+    """Mechanical energy per unit mass (J/kg) of COM state s, the table at y = 0."""
+    return 0.5 * (s[3] * s[3] + s[4] * s[4]) + 0.5 * fpar[FP_INERTIA] * s[5] * s[5] + fpar[FP_G] * s[1]
 
 
 @numba.njit(cache=True)
-def corner_vector(s, n, radius, corner):
-    """Vector (m) from the centre to ``corner``."""
-    psi = s[2] + 2.0 * math.pi * corner / n
-    return radius * math.cos(psi), radius * math.sin(psi)
+def corner_vector(s, fpar, corner):
+    """Vector (m) from the centre of mass to ``corner`` in state s."""
+    return corner_offset(fpar, corner, math.cos(s[2]), math.sin(s[2]))
 
 
 @numba.njit(cache=True)
 def corner_normal_velocity(s, rx, ry, nx, ny):
-    """Normal velocity (m/s) of the corner at (rx, ry) from the centre."""
+    """Normal velocity (m/s) of the corner at (rx, ry) from the centre of mass."""
     return nx * (s[3] - s[5] * ry) + ny * (s[4] + s[5] * rx)
 
 
@@ -71,13 +86,12 @@ def apply_impulse(s, inertia, rx, ry, p_t, p_n, nx, ny):
 
 
 @numba.njit(cache=True)
-def corner_impulse(s, alpha, radius, beta_n, beta_t, rx, ry, nx, ny):
-    """Impulse at the corner (rx, ry) with restitution targets; modifies s in place.
+def corner_impulse(s, inertia, beta_n, beta_t, mu, rx, ry, nx, ny):
+    """Impulse at the corner (rx, ry) with restitution targets and a Coulomb cap mu.
 
-    Returns 1 when the tangential target had to be clipped to keep the impact from creating
-    energy or pulling on the surface, else 0.
+    Modifies s in place. Returns 1 when the impulse had to be moved towards the frictionless
+    one to keep the impact from creating energy or pulling on the surface, else 0.
     """
-    inertia = alpha * radius * radius
     tx = ny
     ty = -nx
     # r_perp = z x r: the corner velocity is v + omega r_perp
@@ -85,89 +99,112 @@ def corner_impulse(s, alpha, radius, beta_n, beta_t, rx, ry, nx, ny):
     a_n = nx * (-ry) + ny * rx
     u_t = tx * (s[3] - s[5] * ry) + ty * (s[4] + s[5] * rx)
     u_n = nx * (s[3] - s[5] * ry) + ny * (s[4] + s[5] * rx)
-    det = 1.0 + radius * radius / inertia
-    # inverse contact mass matrix, (t, n) components
-    m_tt = (1.0 + a_n * a_n / inertia) / det
-    m_tn = -a_t * a_n / inertia / det
-    m_nn = (1.0 + a_t * a_t / inertia) / det
-    u_n_new = -beta_n * u_n
-    q_before = m_tt * u_t * u_t + 2.0 * m_tn * u_t * u_n + m_nn * u_n * u_n
-    target = -beta_t * u_t
-    # frictionless reference: a purely normal impulse; never gains energy, never pulls
-    k_nn = 1.0 + a_n * a_n / inertia
+    k_tt = 1.0 + a_t * a_t / inertia
     k_tn = a_t * a_n / inertia
-    frictionless = u_t + k_tn * (u_n_new - u_n) / k_nn
-    span = frictionless - target
-    # energy: q(lam) = a lam^2 + b lam + c must be <= 0 (twice the energy change)
-    qa = m_tt * span * span
-    qb = 2.0 * span * (m_tt * target + m_tn * u_n_new)
-    qc = m_tt * target * target + 2.0 * m_tn * target * u_n_new + m_nn * u_n_new * u_n_new - q_before
+    k_nn = 1.0 + a_n * a_n / inertia
+    det = k_tt * k_nn - k_tn * k_tn
+    du_t = -(1.0 + beta_t) * u_t
+    du_n = -(1.0 + beta_n) * u_n
+    # restitution target
+    p_t = (k_nn * du_t - k_tn * du_n) / det
+    p_n = (k_tt * du_n - k_tn * du_t) / det
+    # frictionless reference: purely normal, same normal condition; never gains, never pulls
+    f_n = du_n / k_nn
+    if not math.isinf(mu) and (p_n <= 0.0 or abs(p_t) > mu * p_n):
+        # sliding branch: friction at its cap against the incoming slip
+        slip = 1.0 if u_t > 0.0 else -1.0 if u_t < 0.0 else (-1.0 if p_t > 0.0 else 1.0)
+        denom = k_nn - slip * mu * k_tn
+        if denom > 0.0:
+            p_n = du_n / denom
+            p_t = -slip * mu * p_n
+        else:  # no sliding impulse meets the normal condition (a jam): frictionless
+            p_n = f_n
+            p_t = 0.0
+    d_t = -p_t
+    d_n = f_n - p_n
+    # twice the energy change along P(lam) = P + lam D: q(lam) = a lam^2 + b lam + c
+    qa = k_tt * d_t * d_t + 2.0 * k_tn * d_t * d_n + k_nn * d_n * d_n
+    qb = 2.0 * (d_t * (u_t + k_tt * p_t + k_tn * p_n) + d_n * (u_n + k_tn * p_t + k_nn * p_n))
+    qc = 2.0 * (p_t * u_t + p_n * u_n) + k_tt * p_t * p_t + 2.0 * k_tn * p_t * p_n + k_nn * p_n * p_n
     lam = 0.0
     if qc > 0.0:
         disc = max(qb * qb - 4.0 * qa * qc, 0.0)
         denom = math.sqrt(disc) - qb
         lam = 2.0 * qc / denom if denom > 0.0 else 1.0
-    # normal impulse must push: p_n(lam) is linear, positive at lam = 1
-    p_n0 = m_tn * (target - u_t) + m_nn * (u_n_new - u_n)
-    if p_n0 < 0.0:
-        p_n1 = m_tn * (frictionless - u_t) + m_nn * (u_n_new - u_n)
-        lam = max(lam, p_n0 / (p_n0 - p_n1))
+    if p_n < 0.0:
+        lam = max(lam, -p_n / d_n)
     clipped = 0
     if lam > 0.0:
         clipped = 1
         lam = min(lam, 1.0)
-    tau = target + lam * span
-    p_t = m_tt * (tau - u_t) + m_tn * (u_n_new - u_n)
-    p_n = m_tn * (tau - u_t) + m_nn * (u_n_new - u_n)
+        p_t += lam * d_t
+        p_n += lam * d_n
     apply_impulse(s, inertia, rx, ry, p_t, p_n, nx, ny)
     return clipped
 
 
 @numba.njit(cache=True)
-def resolve_impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts):
-    """Resolve an impact of ``corner`` on surface ``surf`` with the paper model.
+def resolve_impact(s, fpar, ipar, surf, corner, counts):
+    """Resolve an impact of ``corner`` on surface ``surf`` with the config's contact model.
 
-    The paper's law is used when the centre approaches the surface and the law leaves the
-    touching corner not approaching; otherwise the paper's case is undefined (a corner driven
-    in by rotation while the centre moves away, or a law that would keep pushing the corner
-    in) and the impulse at the corner is used instead. ``counts`` gets the fallback and clip
-    tallies (columns 2 and 4). Returns the corner's normal velocity after the impact (m/s).
+    Model "paper": the paper's law is used when the centre approaches the surface and the law
+    leaves the touching corner not approaching; otherwise the paper's case is undefined (a
+    corner driven in by rotation while the centre moves away, or a law that would keep
+    pushing the corner in) and the impulse at the corner is used (counted). Model "rigid":
+    always the impulse at the corner. beta_normal falls with the impact speed as
+    beta_normal / (1 + k |u_n|) (k = 0: constant). Returns the corner's normal velocity
+    after the impact (m/s).
     """
-    nx, ny, _ = surface_frame(surf, half_width)
-    rx, ry = corner_vector(s, n, radius, corner)
-    v_n = nx * s[3] + ny * s[4]
-    if v_n < 0.0:
-        saved3 = s[3]
-        saved4 = s[4]
-        saved5 = s[5]
-        paper_law(s, alpha, radius, beta_n, beta_t, nx, ny)
-        u_after = corner_normal_velocity(s, rx, ry, nx, ny)
-        if u_after >= 0.0:
-            return u_after
-        s[3] = saved3
-        s[4] = saved4
-        s[5] = saved5
-    counts[2] += 1
-    counts[4] += corner_impulse(s, alpha, radius, beta_n, beta_t, rx, ry, nx, ny)
+    nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
+    rx, ry = corner_vector(s, fpar, corner)
+    u_n = corner_normal_velocity(s, rx, ry, nx, ny)
+    if u_n >= 0.0:
+        return u_n  # touching but not approaching (e.g. a side landing flat at rest): no impact
+    beta_n = fpar[FP_BN] / (1.0 + fpar[FP_KSR] * abs(u_n))
+    beta_t = fpar[FP_BT]
+    if ipar[IP_MODEL] == MODEL_PAPER:
+        if nx * s[3] + ny * s[4] < 0.0:
+            saved3 = s[3]
+            saved4 = s[4]
+            saved5 = s[5]
+            paper_law(s, fpar[FP_ALPHA], fpar[FP_R], beta_n, beta_t, nx, ny)
+            u_after = corner_normal_velocity(s, rx, ry, nx, ny)
+            if u_after >= 0.0:
+                return u_after
+            s[3] = saved3
+            s[4] = saved4
+            s[5] = saved5
+        counts[C_FALLBACK] += 1
+    counts[C_CLIPS] += corner_impulse(s, fpar[FP_INERTIA], beta_n, beta_t, fpar[FP_MU], rx, ry, nx, ny)
     return corner_normal_velocity(s, rx, ry, nx, ny)
 
 
 @numba.njit(cache=True)
-def stick_corner(s, alpha, radius, rx, ry):
+def stick_corner(s, inertia, rx, ry):
     """Bring the corner (rx, ry) on the table to rest (plastic, sticking impulse).
 
     This is the limit of an endless run of ever smaller bounces; it only removes energy:
     dT = -u^T K^-1 u / 2.
     """
-    inertia = alpha * radius * radius
     a_t = -ry
     a_n = rx
     u_t = s[3] - s[5] * ry
     u_n = s[4] + s[5] * rx
-    det = 1.0 + radius * radius / inertia
-    m_tt = (1.0 + a_n * a_n / inertia) / det
-    m_tn = -a_t * a_n / inertia / det
-    m_nn = (1.0 + a_t * a_t / inertia) / det
-    p_t = -(m_tt * u_t + m_tn * u_n)
-    p_n = -(m_tn * u_t + m_nn * u_n)
+    k_tt = 1.0 + a_t * a_t / inertia
+    k_tn = a_t * a_n / inertia
+    k_nn = 1.0 + a_n * a_n / inertia
+    det = k_tt * k_nn - k_tn * k_tn
+    p_t = -(k_nn * u_t - k_tn * u_n) / det
+    p_n = -(k_tt * u_n - k_tn * u_t) / det
     apply_impulse(s, inertia, rx, ry, p_t, p_n, 0.0, 1.0)
+
+
+@numba.njit(cache=True)
+def stop_corner_normal(s, inertia, rx, ry):
+    """Stop only the normal motion of the table corner (rx, ry): the limit of a Zeno run of
+    bounces under Coulomb friction, whose total normal impulse, and so the friction it can
+    exert, vanishes; the corner keeps its slip. Returns the slip velocity (m/s)."""
+    u_n = s[4] + s[5] * rx
+    k_nn = 1.0 + rx * rx / inertia
+    apply_impulse(s, inertia, rx, ry, 0.0, -u_n / k_nn, 0.0, 1.0)
+    return s[3] - s[5] * ry

@@ -1,9 +1,13 @@
 """One roll and a batch of rolls: the event-driven and the fixed-step integrators.
 
 A roll ends as soon as its side is decided (the exact rule of docs/physics.md: once the
-energy per unit mass is below g R no corner can pass under the centre again, so the side
-crossed by the vertical ray down from the centre is the answer), or with outcome -1 and a
-status saying why not.
+energy per unit mass is below g rho, rho the smaller distance from the centre of mass to the
+two corners of the side below it (R for a fair die), no corner can pass under the centre of
+mass again, so the side crossed by the vertical ray down from it is the answer), or with
+outcome -1 and a status saying why not.
+
+Initial states and sampled paths are those of the geometric centre (where a tracker sees a
+die's centre mark); inside, the kernels follow the centre of mass.
 """
 
 import math
@@ -15,7 +19,7 @@ from dice_sweep.physics.flight import (
     NO_CONTACT,
     STALLED,
     SURF_TABLE,
-    flight_state,
+    advance_flight,
     next_contact,
     surface_frame,
 )
@@ -24,14 +28,17 @@ from dice_sweep.physics.impact import (
     resolve_impact,
     specific_energy,
     stick_corner,
+    stop_corner_normal,
 )
 from dice_sweep.physics.params import (
-    FP_ALPHA,
-    FP_BN,
-    FP_BT,
+    FP_COM_X,
+    FP_COM_Y,
+    FP_DRAG,
     FP_DT,
     FP_G,
-    FP_R,
+    FP_INERTIA,
+    FP_MU,
+    FP_RHO_MAX,
     FP_TMAX,
     FP_WALL,
     IP_MAX_EVENTS,
@@ -39,11 +46,18 @@ from dice_sweep.physics.params import (
     IP_N,
     METHOD_FIXED_STEP,
 )
+from dice_sweep.physics.outcome import decided_side, side_below  # noqa: F401 (re-exported)
 from dice_sweep.physics.pivot import (
     PIVOT_BALANCED,
+    PIVOT_DECIDED,
     PIVOT_LIFTOFF,
+    PIVOT_TIMEOUT,
+    corner_geometry,
     pivot_angle_at,
+    pivot_energy,
     pivot_next,
+    pivot_ode,
+    pivot_turns,
 )
 
 STATE_COLUMNS = ("x0", "y0", "phi0", "vx0", "vy0", "omega0")
@@ -64,8 +78,9 @@ C_CLIPS = 4
 
 # Segment records: one row per stretch of motion, enough to re-create the path at any time.
 SEG_FLIGHT = 0
-SEG_PIVOT = 1
+SEG_PIVOT = 1  # closed-form (conservative, sticking) pivot
 SEG_END = 2
+SEG_PIVOT_ODE = 3  # pivot followed by the ODE (slip, drag, or a loaded die turning back)
 EVENT_START = 0
 EVENT_IMPACT = 1
 EVENT_LIFTOFF = 2
@@ -85,16 +100,32 @@ GAP_TOL = 1e-12  # x R: an approaching corner this close counts as touching
 MIN_STEP = 1e-9  # x sqrt(R/g): smallest step away from a touching, separating corner
 CONTACT_SPEED = 1e-9  # x sqrt(g R): slower approach than this is round-off, not an impact
 STICK_HEIGHT = 1e-8  # x R: a corner bouncing lower than this has come to rest (pivot)
-# E < g R decides the side; a die balanced on a corner sits at E = g R up to round-off, which
-# must not decide it (test_balanced_on_a_corner_is_reported_not_guessed caught that).
-DECISION_MARGIN = 1e-12
+# Consecutive table impacts of one corner after which the contact counts as sustained even
+# if the rebound stays above STICK_HEIGHT: the paper's law on a loaded die can chatter at a
+# constant tiny amplitude (test_loaded_die_prefers_the_heavy_side ran out of events on it).
+CHATTER_LIMIT = 1000
 
 
 @numba.njit(cache=True)
-def side_below(phi, n):
-    """Side crossed by the vertical ray down from the centre (side k: corners k and k+1)."""
-    rel = (-0.5 * math.pi - phi) % (2.0 * math.pi)
-    return int(rel / (2.0 * math.pi / n)) % n
+def _com_offset_world(fpar, phi):
+    """Vector (m) from the geometric centre to the centre of mass at body angle phi."""
+    c = math.cos(phi)
+    sn = math.sin(phi)
+    dx = fpar[FP_COM_X]
+    dy = fpar[FP_COM_Y]
+    return c * dx - sn * dy, sn * dx + c * dy
+
+
+@numba.njit(cache=True)
+def shift_reference(s, fpar, sign, out):
+    """Move state s between the geometric centre (sign +1: centre -> COM) and the COM (-1)."""
+    ox, oy = _com_offset_world(fpar, s[2])
+    out[0] = s[0] + sign * ox
+    out[1] = s[1] + sign * oy
+    out[2] = s[2]
+    out[3] = s[3] - sign * s[5] * oy
+    out[4] = s[4] + sign * s[5] * ox
+    out[5] = s[5]
 
 
 @numba.njit(cache=True)
@@ -115,31 +146,22 @@ def _record(rec, nrec, t, kind, s, corner, px, chi, energy, event):
 
 
 @numba.njit(cache=True)
-def _set_pivot_state(s, px, chi, omega, corner, n, radius):
-    """Full state of a die pivoting on ``corner`` at (px, 0), keeping phi unwrapped."""
-    s[0] = px + radius * math.cos(chi)
-    s[1] = radius * math.sin(chi)
-    phi = chi + math.pi - 2.0 * math.pi * corner / n
+def _set_pivot_state(s, fpar, px, chi, omega, corner):
+    """Full COM state of a die pivoting on ``corner`` at (px, 0), keeping phi unwrapped."""
+    rho, angle = corner_geometry(fpar, corner)
+    s[0] = px + rho * math.cos(chi)
+    s[1] = rho * math.sin(chi)
+    phi = chi - angle - math.pi  # chi is the body angle of (COM - corner) turned by phi
     s[2] = phi + 2.0 * math.pi * round((s[2] - phi) / (2.0 * math.pi))
-    s[3] = -omega * radius * math.sin(chi)
-    s[4] = omega * radius * math.cos(chi)
+    s[3] = -omega * rho * math.sin(chi)
+    s[4] = omega * rho * math.cos(chi)
     s[5] = omega
 
 
 @numba.njit(cache=True)
-def _unpack(fpar, ipar):
-    """(n, R, g, beta_n, beta_t, half_width, t_max, alpha, decision barrier) of a roll."""
-    g = fpar[FP_G]
-    radius = fpar[FP_R]
-    barrier = g * radius * (1.0 - DECISION_MARGIN)
-    return (ipar[IP_N], radius, g, fpar[FP_BN], fpar[FP_BT], fpar[FP_WALL], fpar[FP_TMAX],
-            fpar[FP_ALPHA], barrier)
-
-
-@numba.njit(cache=True)
-def _impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts):
+def _impact(s, fpar, ipar, surf, corner, counts):
     """Resolve one impact and tally it; returns the corner's normal velocity after (m/s)."""
-    u_n = resolve_impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts)
+    u_n = resolve_impact(s, fpar, ipar, surf, corner, counts)
     counts[C_IMPACTS] += 1
     if surf != SURF_TABLE:
         counts[C_WALL] += 1
@@ -148,66 +170,93 @@ def _impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, count
 
 @numba.njit(cache=True)
 def _roll_event(fpar, ipar, s, rec, counts):
-    n, radius, g, beta_n, beta_t, half_width, t_max, alpha, barrier = _unpack(fpar, ipar)
-    tol = GAP_TOL * radius
-    min_step = MIN_STEP * math.sqrt(radius / g)
-    contact_speed = CONTACT_SPEED * math.sqrt(g * radius)
-    stick_speed = math.sqrt(2.0 * g * radius * STICK_HEIGHT)
-    start = np.empty(6)
+    n = ipar[IP_N]
+    g = fpar[FP_G]
+    t_max = fpar[FP_TMAX]
+    scale = fpar[FP_RHO_MAX]
+    tol = GAP_TOL * scale
+    min_step = MIN_STEP * math.sqrt(scale / g)
+    contact_speed = CONTACT_SPEED * math.sqrt(g * scale)
+    stick_speed = math.sqrt(2.0 * g * scale * STICK_HEIGHT)
+    smooth_pivot = math.isinf(fpar[FP_MU]) and fpar[FP_DRAG] == 0.0
     hit = np.zeros(2, dtype=np.int64)
-    out = np.zeros(3)
+    out = np.zeros(5)
+    after = np.empty(6)
     t = 0.0
-    nrec = _record(rec, 0, t, SEG_FLIGHT, s, -1, 0.0, 0.0, specific_energy(s, alpha, radius, g), EVENT_START)
-    if specific_energy(s, alpha, radius, g) < barrier:
-        return side_below(s[2], n), STATUS_DECIDED, t, t, nrec
+    energy = specific_energy(s, fpar)
+    nrec = _record(rec, 0, t, SEG_FLIGHT, s, -1, 0.0, 0.0, energy, EVENT_START)
+    side = decided_side(s, fpar, n)
+    if side >= 0:
+        return side, STATUS_DECIDED, t, t, nrec
     pivoting = False
     corner = -1
     px = 0.0
     chi = 0.0
+    slip = 0.0
+    closed_form = True
+    chatter = 0
+    last_was_flight_impact = False
     for _ in range(ipar[IP_MAX_EVENTS]):
+        came_from_pivot = pivoting
         if not pivoting:
-            tau = next_contact(s, n, radius, g, half_width, t_max - t, tol, min_step, contact_speed, hit)
+            tau = next_contact(s, fpar, ipar, t_max - t, tol, min_step, contact_speed, hit, after)
             if tau == NO_CONTACT:
                 return -1, STATUS_T_MAX, math.nan, t, nrec
             if tau == STALLED:
                 return -1, STATUS_STALLED, math.nan, t, nrec
-            start[:] = s
-            flight_state(start, tau, g, s)
+            s[:] = after
             t += tau
-            surf = hit[0]
-            corner = hit[1]
         else:
-            kind = pivot_next(n, radius, g, alpha, half_width, px, chi, s[5], out, hit)
+            out[3] = 0.0
+            out[4] = 0.0
+            if closed_form:
+                kind = pivot_next(fpar, n, corner, px, chi, s[5], out, hit)
+            else:
+                kind = pivot_ode(fpar, n, corner, px, chi, s[5], slip, t_max - t, out, hit)
             if kind == PIVOT_BALANCED:
                 return -1, STATUS_BALANCED, math.nan, t, nrec
-            if t + out[2] > t_max:
+            if kind == PIVOT_TIMEOUT or t + out[2] > t_max:
                 return -1, STATUS_T_MAX, math.nan, t, nrec
             if nrec > 0:
                 rec[nrec - 1, REC_CHI_END] = out[0]
             t += out[2]
-            _set_pivot_state(s, px, out[0], out[1], corner, n, radius)
+            _set_pivot_state(s, fpar, px + out[3], out[0], out[1], corner)
+            s[3] += out[4]  # a sliding corner carries its slip velocity into what follows
             pivoting = False
+            if kind == PIVOT_DECIDED:
+                nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_LIFTOFF)
+                return decided_side(s, fpar, n), STATUS_DECIDED, t, t, nrec
             if kind == PIVOT_LIFTOFF:
-                nrec = _record(rec, nrec, t, SEG_FLIGHT, s, -1, 0.0, 0.0, specific_energy(s, alpha, radius, g), EVENT_LIFTOFF)
+                nrec = _record(rec, nrec, t, SEG_FLIGHT, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_LIFTOFF)
                 continue
-            surf = hit[0]
-            corner = (corner + hit[1]) % n
-        u_n = _impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts)
-        pivoting = surf == SURF_TABLE and u_n < stick_speed
+        surf = hit[0]
+        same_corner = surf == SURF_TABLE and hit[1] == corner and last_was_flight_impact
+        chatter = chatter + 1 if same_corner else 0
+        corner = hit[1]
+        last_was_flight_impact = not came_from_pivot
+        u_n = _impact(s, fpar, ipar, surf, corner, counts)
+        pivoting = surf == SURF_TABLE and (u_n < stick_speed or chatter >= CHATTER_LIMIT)
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
             # limit, the corner at rest on the table, and turn about it.
-            rx, ry = corner_vector(s, n, radius, corner)
-            stick_corner(s, alpha, radius, rx, ry)
+            rx, ry = corner_vector(s, fpar, corner)
+            if math.isinf(fpar[FP_MU]):
+                stick_corner(s, fpar[FP_INERTIA], rx, ry)
+                slip = 0.0
+            else:
+                slip = stop_corner_normal(s, fpar[FP_INERTIA], rx, ry)
             px = s[0] + rx
             chi = math.atan2(-ry, -rx)
             counts[C_PIVOTS] += 1
-        energy = specific_energy(s, alpha, radius, g)
-        if energy < barrier:
+        energy = specific_energy(s, fpar)
+        side = decided_side(s, fpar, n)
+        if side >= 0:
             nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
-            return side_below(s[2], n), STATUS_DECIDED, t, t, nrec
+            return side, STATUS_DECIDED, t, t, nrec
         if pivoting:
-            nrec = _record(rec, nrec, t, SEG_PIVOT, s, corner, px, chi, energy, EVENT_IMPACT)
+            closed_form = smooth_pivot and not pivot_turns(fpar, n, corner, chi, s[5])
+            kind_rec = SEG_PIVOT if closed_form else SEG_PIVOT_ODE
+            nrec = _record(rec, nrec, t, kind_rec, s, corner, px, chi, energy, EVENT_IMPACT)
         else:
             nrec = _record(rec, nrec, t, SEG_FLIGHT, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
     return -1, STATUS_EVENT_BUDGET, math.nan, t, nrec
@@ -215,21 +264,24 @@ def _roll_event(fpar, ipar, s, rec, counts):
 
 @numba.njit(cache=True)
 def _roll_fixed_step(fpar, ipar, s, rec, counts):
-    """The paper's scheme: exact flight over steps of dt, a collision applied when a corner is
-    found inside a surface and moving further in at the end of a step (no pivot phase)."""
-    n, radius, g, beta_n, beta_t, half_width, t_max, alpha, barrier = _unpack(fpar, ipar)
+    """The paper's scheme: flight over steps of dt (exact without drag), a collision applied
+    when a corner is found inside a surface and moving further in at the end of a step (no
+    pivot phase)."""
+    n = ipar[IP_N]
+    half_width = fpar[FP_WALL]
     dt = fpar[FP_DT]
     n_surf = 1 if math.isinf(half_width) else 3
     start = np.empty(6)
     t = 0.0
-    nrec = _record(rec, 0, t, SEG_FLIGHT, s, -1, 0.0, 0.0, specific_energy(s, alpha, radius, g), EVENT_START)
-    if specific_energy(s, alpha, radius, g) < barrier:
-        return side_below(s[2], n), STATUS_DECIDED, t, t, nrec
-    n_steps = int(math.ceil(t_max / dt))
+    nrec = _record(rec, 0, t, SEG_FLIGHT, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_START)
+    side = decided_side(s, fpar, n)
+    if side >= 0:
+        return side, STATUS_DECIDED, t, t, nrec
+    n_steps = int(math.ceil(fpar[FP_TMAX] / dt))
     impacts = 0
     for step in range(1, n_steps + 1):
         start[:] = s
-        flight_state(start, dt, g, s)
+        advance_flight(start, dt, fpar, s)
         t = step * dt
         deepest = 0.0
         surf = -1
@@ -237,7 +289,7 @@ def _roll_fixed_step(fpar, ipar, s, rec, counts):
         for sf in range(n_surf):
             nx, ny, d = surface_frame(sf, half_width)
             for k in range(n):
-                rx, ry = corner_vector(s, n, radius, k)
+                rx, ry = corner_vector(s, fpar, k)
                 gap = d + nx * (s[0] + rx) + ny * (s[1] + ry)
                 if gap < deepest:
                     u_n = nx * (s[3] - s[5] * ry) + ny * (s[4] + s[5] * rx)
@@ -247,12 +299,13 @@ def _roll_fixed_step(fpar, ipar, s, rec, counts):
                         corner = k
         if corner < 0:
             continue
-        _impact(s, n, alpha, radius, beta_n, beta_t, surf, half_width, corner, counts)
+        _impact(s, fpar, ipar, surf, corner, counts)
         impacts += 1
-        energy = specific_energy(s, alpha, radius, g)
-        if energy < barrier:
+        energy = specific_energy(s, fpar)
+        side = decided_side(s, fpar, n)
+        if side >= 0:
             nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
-            return side_below(s[2], n), STATUS_DECIDED, t, t, nrec
+            return side, STATUS_DECIDED, t, t, nrec
         nrec = _record(rec, nrec, t, SEG_FLIGHT, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
         if impacts >= ipar[IP_MAX_EVENTS]:
             return -1, STATUS_EVENT_BUDGET, math.nan, t, nrec
@@ -267,7 +320,7 @@ def roll_one(fpar, ipar, state0, rec, counts):
     ----------
     fpar, ipar : parameter vectors from :func:`dice_sweep.physics.pack_params`.
     state0 : float64[6]
-        Initial (x0, y0, phi0, vx0, vy0, omega0), SI.
+        Initial (x0, y0, phi0, vx0, vy0, omega0) of the geometric centre, SI.
     rec : float64[m, REC_WIDTH]
         Segment records, filled up to the returned count (m = 0 records nothing).
     counts : int32[len(COUNT_COLUMNS)]
@@ -286,7 +339,8 @@ def roll_one(fpar, ipar, state0, rec, counts):
     n_records : int
         Rows of ``rec`` written (the last may be cut off when rec is too small).
     """
-    s = state0.copy()
+    s = np.empty(6)
+    shift_reference(state0, fpar, 1.0, s)
     for i in range(counts.shape[0]):
         counts[i] = 0
     if ipar[IP_METHOD] == METHOD_FIXED_STEP:
@@ -311,13 +365,14 @@ def roll_batch(fpar, ipar, states, out_outcome, out_status, out_counts, out_t):
 
 @numba.njit(cache=True)
 def sample_records(fpar, ipar, rec, n_rec, times, out):
-    """State (x, y, phi, vx, vy, omega) at each of ``times`` (s, ascending) from records."""
-    n = ipar[IP_N]
-    radius = fpar[FP_R]
+    """State (x, y, phi, vx, vy, omega) of the geometric centre at each of ``times`` (s,
+    ascending) from the records of a roll."""
     g = fpar[FP_G]
-    alpha = fpar[FP_ALPHA]
+    pivot_out = np.zeros(5)
+    pivot_hit = np.zeros(2, dtype=np.int64)
     seg = 0
     start = np.empty(6)
+    com = np.empty(6)
     for i in range(times.shape[0]):
         t = times[i]
         while seg + 1 < n_rec and rec[seg + 1, REC_T] <= t:
@@ -325,14 +380,26 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
         for c in range(6):
             start[c] = rec[seg, REC_STATE + c]
         tau = t - rec[seg, REC_T]
-        if rec[seg, REC_KIND] == SEG_PIVOT:
+        if rec[seg, REC_KIND] == SEG_PIVOT_ODE:
+            # sliding or drag-damped pivot: integrate again up to the sample time
+            corner = int(rec[seg, REC_CORNER])
+            _, ry = corner_vector(start, fpar, corner)
+            slip = 0.0 if math.isinf(fpar[FP_MU]) else start[3] - start[5] * ry
+            pivot_ode(fpar, ipar[IP_N], corner, rec[seg, REC_PX], rec[seg, REC_CHI], start[5], slip, tau, pivot_out, pivot_hit)
+            com[:] = start
+            _set_pivot_state(com, fpar, rec[seg, REC_PX] + pivot_out[3], pivot_out[0], pivot_out[1], corner)
+            com[3] += pivot_out[4]
+        elif rec[seg, REC_KIND] == SEG_PIVOT:
+            corner = int(rec[seg, REC_CORNER])
+            rho, _ = corner_geometry(fpar, corner)
+            alpha = fpar[FP_INERTIA] / (rho * rho)
             chi0 = rec[seg, REC_CHI]
-            chi = pivot_angle_at(chi0, start[5], tau, radius, g, alpha, rec[seg, REC_CHI_END])
-            e = 0.5 * radius * radius * (1.0 + alpha) * start[5] ** 2 + g * radius * math.sin(chi0)
-            w2 = 2.0 * (e - g * radius * math.sin(chi)) / (radius * radius * (1.0 + alpha))
+            chi = pivot_angle_at(chi0, start[5], tau, rho, g, alpha, rec[seg, REC_CHI_END])
+            e = pivot_energy(chi0, start[5], rho, g, alpha)
+            w2 = 2.0 * (e - g * rho * math.sin(chi)) / (rho * rho * (1.0 + alpha))
             omega = math.copysign(math.sqrt(max(w2, 0.0)), start[5] if start[5] != 0.0 else -math.cos(chi0))
-            for c in range(6):
-                out[i, c] = start[c]
-            _set_pivot_state(out[i], rec[seg, REC_PX], chi, omega, int(rec[seg, REC_CORNER]), n, radius)
+            com[:] = start
+            _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner)
         else:
-            flight_state(start, tau, g, out[i])
+            advance_flight(start, tau, fpar, com)
+        shift_reference(com, fpar, -1.0, out[i])

@@ -3,6 +3,11 @@
 The kernels take two flat arrays instead of a config object (numba nopython has no use for
 dataclasses): ``fpar`` (float64) and ``ipar`` (int64), indexed by the constants below.
 Module-level ints are compile-time constants in numba, so indexing costs nothing.
+
+The state inside the kernels is that of the centre of mass (COM). With a loaded die
+(``[effects] com_offset``) the COM sits at ``d`` (body frame) from the geometric centre, and
+corner k seen from the COM is ``R e(2 pi k/n) - d``, stored as a radius rho_k and the cosine and
+sine of its body angle gamma_k from index FP_CORNERS on.
 """
 
 import math
@@ -17,44 +22,81 @@ FP_BT = 3  # beta_tangential, 1
 FP_WALL = 4  # half the wall separation, m (inf: no walls)
 FP_DT = 5  # fixed_step time step, s
 FP_TMAX = 6  # simulated time limit, s
-FP_ALPHA = 7  # I / (M R^2), 1
-N_FPAR = 8
+FP_ALPHA = 7  # I_com / (M R^2), 1
+FP_MU = 8  # Coulomb friction coefficient (inf: no cap)
+FP_DRAG = 9  # quadratic air drag c, 1/m
+FP_KSR = 10  # speed-dependent restitution k, s/m
+FP_COM_X = 11  # centre-of-mass offset from the geometric centre, body frame, m
+FP_COM_Y = 12
+FP_INERTIA = 13  # I_com / M, m^2
+FP_RHO_MAX = 14  # largest distance from the COM to a corner, m
+FP_CORNERS = 16  # then (rho_k, cos gamma_k, sin gamma_k) for k = 0..n-1
+CORNER_STRIDE = 3
 
 # ipar indices
 IP_N = 0  # number of sides
-IP_MODEL = 1  # contact model: MODEL_PAPER
+IP_MODEL = 1  # contact model: MODEL_PAPER or MODEL_RIGID
 IP_METHOD = 2  # integrator: METHOD_EVENT or METHOD_FIXED_STEP
 IP_MAX_EVENTS = 3  # event budget per roll
 N_IPAR = 4
 
 MODEL_PAPER = 0
-MODELS = {"paper": MODEL_PAPER}
+MODEL_RIGID = 1
+MODELS = {"paper": MODEL_PAPER, "rigid": MODEL_RIGID}
 METHOD_EVENT = 0
 METHOD_FIXED_STEP = 1
 METHODS = {"event": METHOD_EVENT, "fixed_step": METHOD_FIXED_STEP}
 
 
 def inertia_ratio(sides):
-    """alpha = I / (M R^2) of a uniform regular n-gon plate (Smith 2014, eq. 25)."""
+    """alpha = I / (M R^2) of a uniform regular n-gon plate about its centre (Smith 2014, eq. 25)."""
     s = math.sin(math.pi / sides)
     c = math.cos(math.pi / sides)
     return s * s / 6.0 + c * c / 2.0
 
 
+def _effects_values(cfg):
+    """(air_drag, com_offset, speed_restitution, gravity) of a config, off when absent."""
+    effects = getattr(cfg, "effects", None)
+    if effects is None:
+        return 0.0, (0.0, 0.0), 0.0, 0.0
+    return effects.air_drag, tuple(effects.com_offset), effects.speed_restitution, effects.gravity
+
+
 def pack_params(cfg):
     """Flatten a validated :class:`dice_sweep.config.Config` into ``(fpar, ipar)``."""
-    fpar = np.zeros(N_FPAR)
-    fpar[FP_R] = cfg.die.circumradius
-    fpar[FP_G] = cfg.world.g
+    n = cfg.die.sides
+    radius = cfg.die.circumradius
+    drag, (dx, dy), k_speed, gravity = _effects_values(cfg)
+    fpar = np.zeros(FP_CORNERS + CORNER_STRIDE * n)
+    fpar[FP_R] = radius
+    fpar[FP_G] = gravity if gravity > 0.0 else cfg.world.g
     fpar[FP_BN] = cfg.contact.beta_normal
     fpar[FP_BT] = cfg.contact.beta_tangential
     sep = cfg.walls.separation
     fpar[FP_WALL] = math.inf if sep is None else 0.5 * sep
     fpar[FP_DT] = cfg.integrator.dt
     fpar[FP_TMAX] = cfg.integrator.t_max
-    fpar[FP_ALPHA] = inertia_ratio(cfg.die.sides)
+    # parallel-axis rule: I about the COM is I about the centre less M d^2
+    inertia = inertia_ratio(n) * radius * radius - (dx * dx + dy * dy)
+    fpar[FP_INERTIA] = inertia
+    fpar[FP_ALPHA] = inertia / (radius * radius)
+    fpar[FP_MU] = getattr(cfg.contact, "friction", math.inf)
+    fpar[FP_DRAG] = drag
+    fpar[FP_KSR] = k_speed
+    fpar[FP_COM_X] = dx
+    fpar[FP_COM_Y] = dy
+    angles = 2.0 * math.pi * np.arange(n) / n
+    bx = radius * np.cos(angles) - dx
+    by = radius * np.sin(angles) - dy
+    rho = np.hypot(bx, by)
+    corners = fpar[FP_CORNERS:].reshape(n, CORNER_STRIDE)
+    corners[:, 0] = rho
+    corners[:, 1] = bx / rho
+    corners[:, 2] = by / rho
+    fpar[FP_RHO_MAX] = rho.max()
     ipar = np.zeros(N_IPAR, dtype=np.int64)
-    ipar[IP_N] = cfg.die.sides
+    ipar[IP_N] = n
     ipar[IP_MODEL] = MODELS[cfg.contact.model]
     ipar[IP_METHOD] = METHODS[cfg.integrator.method]
     ipar[IP_MAX_EVENTS] = cfg.integrator.max_events

@@ -1,9 +1,10 @@
 """Pivot phase: the die turns about a corner resting on the table (Housner's rocking block).
 
-With the corner fixed at (px, 0) and chi the angle of the centre seen from the corner, the die
-is a pendulum: chi'' = -g cos(chi) / (R (1 + alpha)). Its specific energy
-e = R^2 (1 + alpha) omega^2 / 2 + g R sin(chi) is conserved, so everything but the elapsed time
-is known in closed form along the path:
+With the corner fixed at (px, 0), rho its distance from the centre of mass (R for a fair die),
+alpha = I / (M rho^2) and chi the angle of the centre of mass seen from the corner, the die is a
+pendulum: chi'' = -g cos(chi) / (rho (1 + alpha)). Its specific energy
+e = rho^2 (1 + alpha) omega^2 / 2 + g rho sin(chi) is conserved, so everything but the elapsed
+time is known in closed form along the path (written below with R for rho):
 
 * omega(chi)^2 = 2 (e - g R sin chi) / (R^2 (1 + alpha));
 * lift-off is where the corner, released, would accelerate away from the table:
@@ -16,7 +17,8 @@ is known in closed form along the path:
   lift-off there would be followed by a re-contact at the same instant, forever;
   tests/physics/test_kernel.py::test_rolling_polygon_loses_energy_by_the_plastic_factor
   caught that loop). Coulomb friction with a slip phase resolves the band physically;
-* the next corner reaches the table when the side is flat, chi = pi/2 -+ pi/n.
+* the next corner reaches the table when its side is flat: chi = pi/2 -+ pi/n for a fair die,
+  in general the angles of ``flat_angles``.
 
 The pivot is entered only while the side is undecided, e >= g R, so omega never vanishes on
 the way: the path in chi is monotone and the time is the integral of dchi / |omega|.
@@ -26,12 +28,20 @@ import math
 
 import numba
 
-from dice_sweep.physics.flight import SURF_LEFT, SURF_RIGHT, SURF_TABLE
+import numpy as np
+
+from dice_sweep.physics.flight import SURF_LEFT, SURF_RIGHT, SURF_TABLE, corner_offset
+from dice_sweep.physics.outcome import corner_geometry, decided_side
+from dice_sweep.physics.params import FP_DRAG, FP_G, FP_INERTIA, FP_MU, FP_WALL
 
 PIVOT_LIFTOFF = 0
 PIVOT_FLAT = 1  # the next corner reached the table
 PIVOT_WALL = 2  # a corner reached a wall
 PIVOT_BALANCED = 3  # resting on the corner at the top: unstable equilibrium
+PIVOT_DECIDED = 4  # friction or drag took the energy below the barrier during the pivot
+PIVOT_TIMEOUT = 5  # the time allowed ran out during the pivot
+
+ODE_STEP = 1e-3  # x sqrt(rho/g): Runge-Kutta step of a sliding or drag-damped pivot
 
 BALANCE_TOL = 1e-12  # relative kinetic energy at the top below which the die is balanced
 WALL_SAMPLES = 64
@@ -107,40 +117,66 @@ def pivot_time(chi_a, chi_b, e, radius, g, alpha):
 
 
 @numba.njit(cache=True)
-def wall_gap(chi, j_offset, px, radius, half_width, surf):
-    """Gap (m) between a wall and the corner j_offset steps from the pivot corner."""
-    x = px + radius * math.cos(chi) - radius * math.cos(chi + j_offset)
+def _wrap(angle):
+    return angle % (2.0 * math.pi)
+
+
+@numba.njit(cache=True)
+def flat_angles(fpar, n, corner):
+    """(chi_right, chi_left): chi at which the side to the right (to corner k+1) or to the
+    left (to corner k-1) of the pivot corner k lies flat on the table."""
+    rho, ang = corner_geometry(fpar, corner)
+    bx = rho * math.cos(ang)
+    by = rho * math.sin(ang)
+    com_angle = math.atan2(-by, -bx)  # centre of mass seen from the corner, body frame
+    rho_r, ang_r = corner_geometry(fpar, (corner + 1) % n)
+    rho_l, ang_l = corner_geometry(fpar, (corner - 1) % n)
+    right = math.atan2(rho_r * math.sin(ang_r) - by, rho_r * math.cos(ang_r) - bx)
+    left = math.atan2(rho_l * math.sin(ang_l) - by, rho_l * math.cos(ang_l) - bx)
+    # the side to the right lies along +x when flat, the side to the left along -x
+    return _wrap(com_angle - right), _wrap(com_angle + math.pi - left)
+
+
+@numba.njit(cache=True)
+def wall_gap(fpar, chi, com_angle, px, rho, j, half_width, surf):
+    """Gap (m) between a wall and corner j while pivoting at (px, 0)."""
+    phi = chi - com_angle
+    rx, _ = corner_offset(fpar, j, math.cos(phi), math.sin(phi))
+    x = px + rho * math.cos(chi) + rx
     if surf == SURF_LEFT:
         return x + half_width
     return half_width - x
 
 
 @numba.njit(cache=True)
-def first_wall_contact(n, radius, half_width, px, chi0, chi1, hit):
+def first_wall_contact(fpar, n, corner, px, chi0, chi1, hit):
     """First chi on the path chi0 -> chi1 where a corner reaches a wall, or NaN.
 
-    Only called when a wall is within reach of the die (|px| + 2 R >= L). The gaps are smooth
-    with at most a few extrema on a path shorter than 2 pi / n, so sampling then bisection is
-    enough.
+    Only called when a wall is within reach of the die (|px| + 2 rho_max >= L). The gaps are
+    smooth with at most a few extrema on a short path, so sampling then bisection is enough.
     """
+    half_width = fpar[FP_WALL]
+    rho, ang = corner_geometry(fpar, corner)
+    com_angle = math.atan2(-math.sin(ang), -math.cos(ang))
     best = math.nan
     best_frac = 2.0
-    for j in range(1, n):
-        offset = 2.0 * math.pi * j / n
+    for j in range(n):
+        if j == corner:
+            continue
         for surf in (SURF_LEFT, SURF_RIGHT):
-            prev = wall_gap(chi0, offset, px, radius, half_width, surf)
+            prev = wall_gap(fpar, chi0, com_angle, px, rho, j, half_width, surf)
             for i in range(1, WALL_SAMPLES + 1):
                 frac = i / WALL_SAMPLES
                 if frac >= best_frac:
                     break
                 chi = chi0 + (chi1 - chi0) * frac
-                gap = wall_gap(chi, offset, px, radius, half_width, surf)
+                gap = wall_gap(fpar, chi, com_angle, px, rho, j, half_width, surf)
                 if gap <= 0.0 and prev > 0.0:
                     a = chi0 + (chi1 - chi0) * (i - 1) / WALL_SAMPLES
                     b = chi
                     for _ in range(100):
                         mid = 0.5 * (a + b)
-                        if wall_gap(mid, offset, px, radius, half_width, surf) > 0.0:
+                        if wall_gap(fpar, mid, com_angle, px, rho, j, half_width, surf) > 0.0:
                             a = mid
                         else:
                             b = mid
@@ -154,30 +190,51 @@ def first_wall_contact(n, radius, half_width, px, chi0, chi1, hit):
 
 
 @numba.njit(cache=True)
-def pivot_next(n, radius, g, alpha, half_width, px, chi0, omega0, out, hit):
-    """Follow a pivot from (chi0, omega0) to its next event.
+def pivot_turns(fpar, n, corner, chi0, omega0):
+    """True when a pivot heading over the top lacks the energy to pass it and turns back.
+
+    A fair die never does while its side is undecided (e >= g R); a loaded die can: pivoting on
+    a corner far from the centre of mass it may hold more than the barrier of its side yet
+    less than g rho of that corner. Those pivots are followed by :func:`pivot_ode`.
+    """
+    g = fpar[FP_G]
+    rho, _ = corner_geometry(fpar, corner)
+    alpha = fpar[FP_INERTIA] / (rho * rho)
+    direction = 1.0 if omega0 > 0.0 else -1.0 if omega0 < 0.0 else (1.0 if math.cos(chi0) < 0.0 else -1.0)
+    heading_up = direction * (0.5 * math.pi - chi0) > 0.0
+    return heading_up and pivot_energy(chi0, omega0, rho, g, alpha) < g * rho * (1.0 - BALANCE_TOL)
+
+
+@numba.njit(cache=True)
+def pivot_next(fpar, n, corner, px, chi0, omega0, out, hit):
+    """Follow a sticking pivot on ``corner`` from (chi0, omega0) to its next event.
 
     Parameters
     ----------
-    n, radius, g, alpha, half_width : die and world (SI).
+    fpar : parameter vector (dice_sweep.physics.params).
+    n, corner : int
+        Number of sides; the pivot corner.
     px : float
         Position (m) of the pivot corner on the table.
     chi0, omega0 : float
-        Start angle of the centre seen from the corner (rad) and angular velocity (rad/s).
+        Start angle of the centre of mass seen from the corner (rad) and angular velocity
+        (rad/s).
     out : float64[3]
         Output: chi at the event (rad), omega there (rad/s), duration (s).
     hit : int64[2]
-        Output for PIVOT_FLAT and PIVOT_WALL: surface and corner offset (steps from the pivot
-        corner, counterclockwise) of the corner that arrives.
+        Output for PIVOT_FLAT and PIVOT_WALL: surface and corner that arrives.
 
     Returns
     -------
     int
         PIVOT_LIFTOFF, PIVOT_FLAT, PIVOT_WALL or PIVOT_BALANCED.
     """
-    half_angle = math.pi / n
-    chi0 = min(max(chi0, 0.5 * math.pi - half_angle), 0.5 * math.pi + half_angle)
-    e = pivot_energy(chi0, omega0, radius, g, alpha)
+    g = fpar[FP_G]
+    rho, _ = corner_geometry(fpar, corner)
+    alpha = fpar[FP_INERTIA] / (rho * rho)
+    chi_right, chi_left = flat_angles(fpar, n, corner)
+    chi0 = min(max(chi0, chi_right), chi_left)
+    e = pivot_energy(chi0, omega0, rho, g, alpha)
     if omega0 > 0.0:
         direction = 1.0
     elif omega0 < 0.0:
@@ -187,22 +244,22 @@ def pivot_next(n, radius, g, alpha, half_width, px, chi0, omega0, out, hit):
         if c == 0.0:
             return PIVOT_BALANCED
         direction = -1.0 if c > 0.0 else 1.0
-    chi_flat = 0.5 * math.pi + direction * half_angle
+    chi_flat = chi_left if direction > 0.0 else chi_right
     # At the top with round-off-sized motion, or creeping up to it with no energy to spare:
     # the die stays balanced on the corner, and which way it would fall is round-off.
-    crosses_top = direction * (0.5 * math.pi - chi0) > 0.0
-    spare = BALANCE_TOL * g * radius
-    at_top = 1.0 - math.sin(chi0) <= BALANCE_TOL and e - g * radius * math.sin(chi0) <= spare
-    if at_top or (crosses_top and e - g * radius <= spare):
+    crosses_top = direction * (0.5 * math.pi - chi0) > 0.0 and direction * (chi_flat - 0.5 * math.pi) > 0.0
+    spare = BALANCE_TOL * g * rho
+    at_top = 1.0 - math.sin(chi0) <= BALANCE_TOL and e - g * rho * math.sin(chi0) <= spare
+    if at_top or (crosses_top and e - g * rho <= spare):
         return PIVOT_BALANCED
     kind = PIVOT_FLAT
     chi_end = chi_flat
     # lift-off: the first chi on the path where q(sin chi) < 0
-    if liftoff_factor(math.sin(chi0), e, radius, g, alpha) < 0.0:
+    if liftoff_factor(math.sin(chi0), e, rho, g, alpha) < 0.0:
         kind = PIVOT_LIFTOFF
         chi_end = chi0
     else:
-        b = 2.0 * e / radius
+        b = 2.0 * e / rho
         disc = b * b - 8.0 * g * g * (1.0 + alpha)
         if disc > 0.0:
             sq = math.sqrt(disc)
@@ -215,20 +272,21 @@ def pivot_next(n, radius, g, alpha, half_width, px, chi0, omega0, out, hit):
                     if dist <= 0.0 or dist >= direction * (chi_end - chi0):
                         continue
                     probe = math.sin(chi_c + direction * 1e-9)
-                    if liftoff_factor(probe, e, radius, g, alpha) < 0.0:
+                    if liftoff_factor(probe, e, rho, g, alpha) < 0.0:
                         kind = PIVOT_LIFTOFF
                         chi_end = chi_c
-    if not math.isinf(half_width) and abs(px) + 2.0 * radius >= half_width and chi_end != chi0:
-        chi_wall = first_wall_contact(n, radius, half_width, px, chi0, chi_end, hit)
+    half_width = fpar[FP_WALL]
+    if not math.isinf(half_width) and abs(px) + 2.0 * rho >= half_width and chi_end != chi0:
+        chi_wall = first_wall_contact(fpar, n, corner, px, chi0, chi_end, hit)
         if not math.isnan(chi_wall):
             kind = PIVOT_WALL
             chi_end = chi_wall
     if kind == PIVOT_FLAT:
         hit[0] = SURF_TABLE
-        hit[1] = 1 if direction < 0.0 else n - 1
+        hit[1] = (corner + 1) % n if direction < 0.0 else (corner - 1) % n
     out[0] = chi_end
-    out[1] = direction * math.sqrt(max(omega_squared(chi_end, e, radius, g, alpha), 0.0))
-    out[2] = pivot_time(chi0, chi_end, e, radius, g, alpha)
+    out[1] = direction * math.sqrt(max(omega_squared(chi_end, e, rho, g, alpha), 0.0))
+    out[2] = pivot_time(chi0, chi_end, e, rho, g, alpha)
     return kind
 
 
@@ -251,3 +309,193 @@ def pivot_angle_at(chi0, omega0, tau, radius, g, alpha, chi_end):
         step = resid * math.sqrt(max(omega_squared(chi, e, radius, g, alpha), 0.0))
         chi = min(max(chi - sign * step, lo), hi)
     return chi
+
+
+# ---- pivots that are not conservative: Coulomb slip and/or air drag (ODE) -------------------
+# Variables: chi, omega, xp (how far the corner has slid, m), up (its slip velocity, m/s).
+# Sticking (up = 0): the die turns about the corner. Sliding with slip direction s: the
+# friction force is -s mu N, and N follows from the corner staying on the table,
+#   N = (g - D_y - rho omega^2 sin chi) / (1 + (rho^2/I) cos chi (cos chi + s mu sin chi)),
+#   omega' = -(rho/I) N (cos chi + s mu sin chi),
+# with D the drag acceleration of the centre of mass (per unit mass throughout).
+MODE_STICK = 0
+
+
+@numba.njit(cache=True)
+def _com_velocity(chi, omega, up, rho):
+    return up - omega * rho * math.sin(chi), omega * rho * math.cos(chi)
+
+
+@numba.njit(cache=True)
+def _contact_rates(y, mode, rho, inertia, g, mu, c, rates):
+    """Time derivatives of y = (chi, omega, xp, up); returns (N, F_needed) per unit mass.
+
+    For a sticking corner N and F are the forces sticking needs; for a sliding one N is the
+    normal force and F the friction applied.
+    """
+    chi, omega, up = y[0], y[1], y[3]
+    sc = math.sin(chi)
+    cc = math.cos(chi)
+    vx, vy = _com_velocity(chi, omega, up, rho)
+    speed = math.sqrt(vx * vx + vy * vy)
+    drag_x = -c * speed * vx
+    drag_y = -c * speed * vy
+    rates[0] = omega
+    rates[2] = up
+    if mode == MODE_STICK:
+        torque = rho * cc * (drag_y - g) - rho * sc * drag_x  # about the corner
+        domega = torque / (inertia + rho * rho)
+        rates[1] = domega
+        rates[3] = 0.0
+        ddx = -rho * (sc * domega + cc * omega * omega)
+        ddy = rho * (cc * domega - sc * omega * omega)
+        return ddy + g - drag_y, ddx - drag_x
+    lever = cc + mode * mu * sc
+    normal = (g - drag_y - rho * omega * omega * sc) / (1.0 + rho * rho / inertia * cc * lever)
+    domega = -rho / inertia * normal * lever
+    friction = -mode * mu * normal
+    rates[1] = domega
+    rates[3] = friction + drag_x + rho * (sc * domega + cc * omega * omega)
+    return normal, friction
+
+
+@numba.njit(cache=True)
+def _rk4_contact(y, h, mode, rho, inertia, g, mu, c, out, k):
+    for i in range(4):
+        out[i] = y[i]
+    _contact_rates(y, mode, rho, inertia, g, mu, c, k[0])
+    for i in range(4):
+        out[i] = y[i] + 0.5 * h * k[0, i]
+    _contact_rates(out, mode, rho, inertia, g, mu, c, k[1])
+    for i in range(4):
+        out[i] = y[i] + 0.5 * h * k[1, i]
+    _contact_rates(out, mode, rho, inertia, g, mu, c, k[2])
+    for i in range(4):
+        out[i] = y[i] + h * k[2, i]
+    _contact_rates(out, mode, rho, inertia, g, mu, c, k[3])
+    for i in range(4):
+        out[i] = y[i] + h * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i]) / 6.0
+
+
+@numba.njit(cache=True)
+def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit):
+    """The event that holds in contact state y (0: none), with ``hit`` for impacts.
+
+    Order matters only for simultaneous events: impacts, then lift-off, then friction
+    transitions, then the decision.
+    """
+    chi, omega = y[0], y[1]
+    if (chi <= chi_right and omega < 0.0) or (chi >= chi_left and omega > 0.0):
+        hit[0] = SURF_TABLE
+        hit[1] = (corner + 1) % n if chi <= chi_right else (corner - 1) % n
+        return 1
+    normal, friction = _contact_rates(y, mode, rho, inertia, g, mu, c, rates)
+    _, angle = corner_geometry(fpar, corner)
+    vx, vy = _com_velocity(chi, omega, y[3], rho)
+    state[0] = px + y[2] + rho * math.cos(chi)
+    state[1] = rho * math.sin(chi)
+    state[2] = chi - angle - math.pi
+    state[3] = vx
+    state[4] = vy
+    state[5] = omega
+    half_width = fpar[FP_WALL]
+    if not math.isinf(half_width):
+        cphi = math.cos(state[2])
+        sphi = math.sin(state[2])
+        for j in range(n):
+            rx, _ = corner_offset(fpar, j, cphi, sphi)
+            if state[0] + rx >= half_width or state[0] + rx <= -half_width:
+                hit[0] = SURF_RIGHT if state[0] + rx >= half_width else SURF_LEFT
+                hit[1] = j
+                return 2
+    if mode == MODE_STICK:
+        speed = math.sqrt(vx * vx + vy * vy)
+        if -g - c * speed * vy + omega * omega * rho * math.sin(chi) >= 0.0:
+            return 3  # a released corner would leave the table (see the module docstring)
+        if not math.isinf(mu) and abs(friction) > mu * normal:
+            return 4  # friction cannot hold the corner: it starts to slide
+    else:
+        if normal < 0.0:
+            return 3
+        if mode * y[3] < 0.0:
+            return 4  # the slip stopped: stick again, or slide the other way
+    if decided_side(state, fpar, n) >= 0:
+        return 5
+    return 0
+
+
+@numba.njit(cache=True)
+def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, out, hit):
+    """Follow a pivot with Coulomb slip and/or air drag to its next event (ODE, RK4).
+
+    ``slip0`` is the corner's slip velocity (m/s) at the start. Same contract as
+    :func:`pivot_next`, plus out[3] = slid distance of the corner (m) and
+    out[4] = its slip velocity (m/s) at the event, and two more results: PIVOT_DECIDED when
+    friction or drag took the energy below the barrier, PIVOT_TIMEOUT when ``t_left`` (s) ran
+    out (out then holds the state at exactly t_left: sample_records relies on that). Events are
+    located by bisection of the step to about 1e-12 of a step.
+    """
+    g = fpar[FP_G]
+    mu = fpar[FP_MU]
+    c = fpar[FP_DRAG]
+    inertia = fpar[FP_INERTIA]
+    rho, _ = corner_geometry(fpar, corner)
+    chi_right, chi_left = flat_angles(fpar, n, corner)
+    h_max = ODE_STEP * math.sqrt(rho / g)
+    y = np.zeros(4)
+    y[0] = min(max(chi0, chi_right), chi_left)
+    y[1] = omega0
+    y[3] = slip0
+    trial = np.zeros(4)
+    k = np.zeros((4, 4))
+    rates = np.zeros(4)
+    state = np.zeros(6)
+    mode = MODE_STICK if slip0 == 0.0 else (1 if slip0 > 0.0 else -1)
+    t = 0.0
+    kind = PIVOT_TIMEOUT
+    max_steps = int(t_left / h_max) + 2 * int(1e6)
+    for _ in range(max_steps):
+        event = _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+        if event == 4:
+            # friction transition at this instant: slide (direction against the needed force)
+            normal, friction = _contact_rates(y, MODE_STICK, rho, inertia, g, mu, c, rates)
+            if mode != MODE_STICK and abs(friction) <= mu * normal:
+                mode = MODE_STICK
+                y[3] = 0.0
+            elif y[3] != 0.0:
+                mode = 1 if y[3] > 0.0 else -1
+            else:
+                mode = 1 if friction < 0.0 else -1  # slide against the force sticking needs
+        elif event != 0:
+            kind = (PIVOT_FLAT, PIVOT_WALL, PIVOT_LIFTOFF, PIVOT_DECIDED)[event - 1 if event < 4 else 3]
+            break
+        if mode == MODE_STICK and abs(y[1]) < 1e-12 * math.sqrt(g / rho) and abs(math.cos(y[0])) < 1e-9:
+            kind = PIVOT_BALANCED
+            break
+        h = min(h_max, t_left - t)
+        if h <= 0.0:
+            kind = PIVOT_TIMEOUT
+            break
+        _rk4_contact(y, h, mode, rho, inertia, g, mu, c, trial, k)
+        probe = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+        if probe != 0:
+            # locate the event inside the step by bisection on the step length
+            lo = 0.0
+            hi = h
+            for _ in range(45):
+                mid = 0.5 * (lo + hi)
+                _rk4_contact(y, mid, mode, rho, inertia, g, mu, c, trial, k)
+                if _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit) != 0:
+                    hi = mid
+                else:
+                    lo = mid
+            h = hi
+            _rk4_contact(y, h, mode, rho, inertia, g, mu, c, trial, k)
+        y[:] = trial
+        t += h
+    out[0] = y[0]
+    out[1] = y[1]
+    out[2] = t
+    out[3] = y[2]
+    out[4] = y[3]
+    return kind

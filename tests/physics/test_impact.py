@@ -9,19 +9,22 @@ from hypothesis import strategies as st
 from dice_sweep.physics.flight import SURF_LEFT, SURF_RIGHT, SURF_TABLE, surface_frame
 from dice_sweep.physics.impact import (
     corner_impulse,
+    corner_vector,
     corner_normal_velocity,
     paper_law,
     resolve_impact,
     specific_energy,
     stick_corner,
 )
-from dice_sweep.physics.params import inertia_ratio
+from dice_sweep.physics.params import FP_INERTIA, inertia_ratio
+from tests.physics.conftest import make_params
 
 RADIUS = 0.0134
 
 
-def kinetic(s, alpha):
-    return 0.5 * (s[3] ** 2 + s[4] ** 2) + 0.5 * alpha * RADIUS**2 * s[5] ** 2
+def kinetic(s, inertia):
+    """Kinetic energy per unit mass; ``inertia`` = I/M (m^2)."""
+    return 0.5 * (s[3] ** 2 + s[4] ** 2) + 0.5 * inertia * s[5] ** 2
 
 
 state_strategy = st.tuples(
@@ -32,7 +35,7 @@ state_strategy = st.tuples(
 )
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=600, deadline=None)
 @given(
     state=state_strategy,
     sides=st.integers(3, 20),
@@ -40,23 +43,28 @@ state_strategy = st.tuples(
     beta_t=st.floats(-1.0, 1.0),
     surf=st.sampled_from([SURF_TABLE, SURF_LEFT, SURF_RIGHT]),
     corner=st.integers(0, 19),
+    model=st.sampled_from(["paper", "rigid"]),
+    friction=st.sampled_from([math.inf, 0.0, 0.1, 0.5, 2.0]),
+    speed_k=st.sampled_from([0.0, 0.5]),
+    offset=st.tuples(st.floats(-0.004, 0.004), st.floats(-0.004, 0.004)),
 )
-def test_no_impact_gains_energy(state, sides, beta_n, beta_t, surf, corner):
-    """Paper law, its corner fallback and the energy clip never create kinetic energy."""
+def test_no_impact_gains_energy(state, sides, beta_n, beta_t, surf, corner, model, friction, speed_k, offset):
+    """Both models, every cap, speed-dependent restitution and a loaded die: no impact creates
+    kinetic energy, and the touching corner never keeps going in."""
     corner %= sides
-    alpha = inertia_ratio(sides)
+    fpar, ipar = make_params(sides=sides, radius=RADIUS, beta_n=beta_n, beta_t=beta_t, separation=0.2,
+                             model=model, friction=friction, speed_restitution=speed_k, com_offset=offset)
     phi, vx, vy, omega = state
     s = np.array([0.0, 0.1, phi, vx, vy, omega])
-    nx, ny, _ = surface_frame(surf, 0.2)
-    psi = phi + 2 * math.pi * corner / sides
-    rx, ry = RADIUS * math.cos(psi), RADIUS * math.sin(psi)
+    nx, ny, _ = surface_frame(surf, 0.1)
+    rx, ry = corner_vector(s, fpar, corner)
     if corner_normal_velocity(s, rx, ry, nx, ny) >= 0.0:
         return  # not an impact: the corner is not approaching
-    before = kinetic(s, alpha)
+    before = kinetic(s, fpar[FP_INERTIA])
     counts = np.zeros(5, np.int32)
-    u_after = resolve_impact(s, sides, alpha, RADIUS, beta_n, beta_t, surf, 0.2, corner, counts)
-    assert kinetic(s, alpha) <= before * (1 + 1e-12) + 1e-15
-    assert u_after >= -1e-12  # the touching corner does not keep going in
+    u_after = resolve_impact(s, fpar, ipar, surf, corner, counts)
+    assert kinetic(s, fpar[FP_INERTIA]) <= before * (1 + 1e-12) + 1e-15
+    assert u_after >= -1e-12 * (1 + abs(vx) + abs(vy) + RADIUS * abs(omega))
 
 
 @settings(max_examples=300, deadline=None)
@@ -71,9 +79,10 @@ def test_corner_impulse_energy_and_restitution(state, beta_n, beta_t, corner_ang
     u_n = corner_normal_velocity(s, rx, ry, 0.0, 1.0)
     if u_n >= 0.0:
         return
-    before = kinetic(s, alpha)
-    corner_impulse(s, alpha, RADIUS, beta_n, beta_t, rx, ry, 0.0, 1.0)
-    assert kinetic(s, alpha) <= before * (1 + 1e-12) + 1e-15
+    inertia = alpha * RADIUS**2
+    before = kinetic(s, inertia)
+    corner_impulse(s, inertia, beta_n, beta_t, math.inf, rx, ry, 0.0, 1.0)
+    assert kinetic(s, inertia) <= before * (1 + 1e-12) + 1e-15
     assert math.isclose(corner_normal_velocity(s, rx, ry, 0.0, 1.0), -beta_n * u_n, rel_tol=1e-9, abs_tol=1e-12)
 
 
@@ -89,7 +98,7 @@ def test_energy_clip_happens_and_is_counted():
         s = np.array([0.0, 0.1, 0.0, *rng.uniform(-2, 2, 2), rng.uniform(-100, 100)])
         if corner_normal_velocity(s, rx, ry, 0.0, 1.0) >= 0.0:
             continue
-        clipped += corner_impulse(s, alpha, RADIUS, 0.9, 1.0, rx, ry, 0.0, 1.0)
+        clipped += corner_impulse(s, alpha * RADIUS**2, 0.9, 1.0, math.inf, rx, ry, 0.0, 1.0)
     assert clipped > 0
 
 
@@ -128,10 +137,10 @@ def test_walls_are_mirror_images():
 
 
 def test_stick_corner_stops_the_corner_and_only_removes_energy():
-    alpha = inertia_ratio(6)
+    fpar, _ = make_params(sides=6, radius=RADIUS)
     rx, ry = RADIUS * math.cos(-1.2), RADIUS * math.sin(-1.2)
     s = np.array([0.0, 0.02, 0.0, 0.4, -0.1, 9.0])
-    before = specific_energy(s, alpha, RADIUS, 9.81)
-    stick_corner(s, alpha, RADIUS, rx, ry)
+    before = specific_energy(s, fpar)
+    stick_corner(s, fpar[FP_INERTIA], rx, ry)
     assert abs(s[3] - s[5] * ry) < 1e-14 and abs(s[4] + s[5] * rx) < 1e-14
-    assert specific_energy(s, alpha, RADIUS, 9.81) <= before
+    assert specific_energy(s, fpar) <= before

@@ -18,7 +18,7 @@ from dice_sweep.physics.kernel import (
 )
 from dice_sweep.physics.params import inertia_ratio
 from dice_sweep.roll import sample_path
-from tests.physics.conftest import TABLE1_RADIUS, make_params, random_states, run_batch, run_one
+from tests.physics.conftest import TABLE1_RADIUS, make_config, make_params, random_states, run_batch, run_one
 
 G = 9.81
 R = TABLE1_RADIUS
@@ -168,16 +168,10 @@ def test_fixed_step_converges_to_event_as_dt_shrinks():
 def test_no_corner_ever_inside_the_table(rng):
     """Sampled densely along event-driven paths, every corner stays above the table and
     inside the walls to round-off."""
-    from types import SimpleNamespace
+    from dice_sweep.roll import roll_config
 
     sides, separation = 5, 0.07
-    cfg = SimpleNamespace(
-        die=SimpleNamespace(sides=sides, circumradius=R),
-        contact=SimpleNamespace(model="paper", beta_normal=0.5, beta_tangential=-0.35),
-        walls=SimpleNamespace(separation=separation), world=SimpleNamespace(g=G),
-        integrator=SimpleNamespace(method="event", dt=1e-3, t_max=30.0, max_events=100_000),
-    )
-    from dice_sweep.roll import roll_config
+    cfg = make_config(sides=sides, beta_n=0.5, separation=separation)
 
     for state in random_states(rng, 20, y_range=(0.04, 0.12)):
         report = roll_config(cfg, state=state)
@@ -193,6 +187,7 @@ def test_no_corner_ever_inside_the_table(rng):
 def test_side_below_numbering():
     # square with a flat side down (phi = pi/4): corners at 45, 135, 225, 315 degrees; the
     # downward ray crosses the side between corners 2 and 3
-    assert side_below(math.pi / 4, 4) == 2
-    assert side_below(math.pi / 4 + 2 * math.pi / 4, 4) == 1
-    assert side_below(-math.pi / 2 + 1e-9, 4) == 3
+    fpar, _ = make_params(sides=4)
+    assert side_below(math.pi / 4, fpar, 4) == 2
+    assert side_below(math.pi / 4 + 2 * math.pi / 4, fpar, 4) == 1
+    assert side_below(-math.pi / 2 + 1e-9, fpar, 4) == 3

@@ -6,6 +6,7 @@ import time
 import numpy as np
 import pytest
 
+from tests.physics.conftest import make_params
 from dice_sweep.physics.pivot import (
     PIVOT_FLAT,
     PIVOT_LIFTOFF,
@@ -66,12 +67,15 @@ def test_liftoff_factor_sign_is_the_released_corner_acceleration():
         assert math.copysign(1, q) == math.copysign(1, released) or abs(released) < 1e-9
 
 
+FPAR, _ = make_params(sides=4, radius=R)
+
+
 def test_pivot_reaches_the_next_corner_and_time_inverts():
     out = np.zeros(3)
     hit = np.zeros(2, np.int64)
     # square, rolling right over the top (e > g R), slow enough never to lift off
     chi0, omega0 = math.pi / 2 + 0.5, -14.0
-    kind = pivot_next(4, R, G, ALPHA, math.inf, 0.0, chi0, omega0, out, hit)
+    kind = pivot_next(FPAR, 4, 0, 0.0, chi0, omega0, out, hit)
     assert kind == PIVOT_FLAT and hit[1] == 1
     assert math.isclose(out[0], math.pi / 4, rel_tol=1e-14)
     e = pivot_energy(chi0, omega0, R, G, ALPHA)
@@ -87,7 +91,7 @@ def test_fast_pivot_lifts_off_where_the_corner_would_leave():
     # faster than sin(chi) falls, so the released corner would leave part-way down
     chi0, omega0 = math.pi - math.asin(0.99), -math.sqrt(730.0)
     assert omega0**2 * R * 0.99 < G
-    kind = pivot_next(4, R, G, ALPHA, math.inf, 0.0, chi0, omega0, out, hit)
+    kind = pivot_next(FPAR, 4, 0, 0.0, chi0, omega0, out, hit)
     assert kind == PIVOT_LIFTOFF
     assert out[0] < math.pi / 2 and out[2] > 0.0
     assert math.isclose(out[1] ** 2 * R * math.sin(out[0]), G, rel_tol=1e-9)

@@ -1,0 +1,52 @@
+"""The outcome rule: which side is below the centre of mass, and whether it is decided."""
+
+import math
+
+import numba
+
+from dice_sweep.physics.impact import specific_energy
+from dice_sweep.physics.params import CORNER_STRIDE, FP_COM_X, FP_COM_Y, FP_CORNERS, FP_G
+
+# E < g rho decides the side; a die balanced on a corner sits at E = g rho up to round-off,
+# which must not decide it (test_balanced_on_a_corner_is_reported_not_guessed caught that).
+DECISION_MARGIN = 1e-12
+
+
+@numba.njit(cache=True)
+def corner_geometry(fpar, corner):
+    """(rho, angle) of ``corner`` seen from the centre of mass in the body frame."""
+    base = FP_CORNERS + CORNER_STRIDE * corner
+    return fpar[base], math.atan2(fpar[base + 2], fpar[base + 1])
+
+
+@numba.njit(cache=True)
+def side_below(phi, fpar, n):
+    """Side crossed by the vertical ray down from the centre of mass (side k: corners k, k+1)."""
+    ray = (-0.5 * math.pi - phi) % (2.0 * math.pi)  # the ray's angle in the body frame
+    if fpar[FP_COM_X] == 0.0 and fpar[FP_COM_Y] == 0.0:
+        return int(ray / (2.0 * math.pi / n)) % n
+    _, start = corner_geometry(fpar, 0)
+    for k in range(n):
+        _, end = corner_geometry(fpar, (k + 1) % n)
+        if (ray - start) % (2.0 * math.pi) < (end - start) % (2.0 * math.pi):
+            return k
+        start = end
+    return n - 1
+
+
+@numba.njit(cache=True)
+def decided_side(s, fpar, n):
+    """The side if it is decided in COM state s, else -1.
+
+    To change the side below the centre of mass a corner of that side must pass under it,
+    lifting it to that corner's distance rho from it: impossible once the energy per unit mass
+    is below g min(rho_a, rho_b) (with a relative margin, so that a die balanced on a corner,
+    at exactly that energy, is not decided by round-off).
+    """
+    k = side_below(s[2], fpar, n)
+    rho_a, _ = corner_geometry(fpar, k)
+    rho_b, _ = corner_geometry(fpar, (k + 1) % n)
+    barrier = fpar[FP_G] * min(rho_a, rho_b) * (1.0 - DECISION_MARGIN)
+    return k if specific_energy(s, fpar) < barrier else -1
+
+

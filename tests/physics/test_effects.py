@@ -1,0 +1,153 @@
+"""Issue 4: the rigid contact model, Coulomb friction and the effects library."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dice_sweep.physics.kernel import (
+    REC_ENERGY,
+    REC_KIND,
+    REC_STATE,
+    REC_T,
+    SEG_PIVOT,
+    SEG_PIVOT_ODE,
+    STATUS_DECIDED,
+    decided_side,
+    shift_reference,
+)
+from dice_sweep.physics.params import FP_INERTIA
+from dice_sweep.roll import roll_config, sample_path
+from tests.physics.conftest import TABLE1_RADIUS, make_config, make_params, random_states, run_batch, run_one
+
+G = 9.81
+R = TABLE1_RADIUS
+
+
+def test_quadratic_drag_fall_matches_the_closed_form():
+    """Straight down with a = -g - c |v| v: y(t) = y0 - (v_t^2/g) ln cosh(g t / v_t), v_t =
+    sqrt(g/c); the corner pointing down touches when y = R."""
+    c, y0 = 0.8, 0.5
+    params = make_params(air_drag=c)
+    _, _, _, _, rec, _ = run_one(params, [0.0, y0, -math.pi / 2, 0.0, 0.0, 0.0])
+    v_t = math.sqrt(G / c)
+    expected = v_t / G * math.acosh(math.exp((y0 - R) * G / v_t**2))
+    assert math.isclose(rec[1, REC_T], expected, rel_tol=1e-10)
+    assert rec[1, REC_T] > math.sqrt(2 * (y0 - R) / G)  # slower than free fall
+
+
+def test_tiny_drag_changes_no_outcome(rng):
+    states = random_states(rng, 200, y_range=(0.03, 0.1), omega_max=20.0)
+    plain, _, _, _ = run_batch(make_params(), states)
+    tiny, _, _, _ = run_batch(make_params(air_drag=1e-12), states)
+    assert np.mean(plain == tiny) > 0.99
+
+
+@pytest.mark.parametrize("k", [0.0, 0.3, 2.0])
+def test_speed_restitution_on_a_flat_landing(k):
+    y0, beta_n = 0.15, 0.5
+    _, _, _, _, rec, _ = run_one(make_params(beta_n=beta_n, speed_restitution=k), [0.0, y0, math.pi / 4, 0, 0, 0])
+    vy = -math.sqrt(2 * G * (y0 - R * math.cos(math.pi / 4)))
+    assert math.isclose(rec[1, REC_STATE + 4], -beta_n / (1 + k * abs(vy)) * vy, rel_tol=1e-9)
+
+
+def test_gravity_effect_replaces_g():
+    params = make_params(gravity=9.44)
+    _, _, _, _, rec, _ = run_one(params, [0.0, 0.2, -math.pi / 2, 0, 0, 0])
+    assert math.isclose(rec[1, REC_T], math.sqrt(2 * (0.2 - R) / 9.44), rel_tol=1e-12)
+
+
+def test_frictionless_table_keeps_horizontal_momentum(rng):
+    """With mu = 0 every contact force is vertical: vx of the centre of mass never changes,
+    through impacts and sliding pivots alike."""
+    cfg = make_config(model="rigid", beta_t=0.0, friction=0.0)
+    for state in random_states(rng, 20, y_range=(0.03, 0.1)):
+        report = roll_config(cfg, state=state)
+        vx = report.records[:, REC_STATE + 3]
+        assert np.allclose(vx, vx[0], atol=1e-9), vx
+
+
+@pytest.mark.parametrize("model", ["paper", "rigid"])
+@pytest.mark.parametrize("friction, drag", [(0.3, 0.0), (math.inf, 0.5), (0.6, 0.3)])
+def test_energy_never_increases_with_friction_and_drag(model, friction, drag, rng):
+    params = make_params(model=model, friction=friction, air_drag=drag, beta_t=0.0 if model == "rigid" else -0.35,
+                         separation=0.06)
+    for state in random_states(rng, 25, y_range=(0.03, 0.12)):
+        outcome, status, _, _, rec, _ = run_one(params, state)
+        energy = rec[:, REC_ENERGY]
+        assert np.all(np.diff(energy) <= 1e-12 * np.abs(energy[:-1]) + 1e-15)
+        assert status == STATUS_DECIDED or outcome == -1
+
+
+def test_sticking_pivot_ode_matches_the_closed_form():
+    """A huge but finite friction sends pivots through the ODE path; they must reproduce the
+    closed-form (elliptic) pivot: same transfers, same omega after each, to 1e-7."""
+    sides = 6
+    chi0 = math.pi / 2 + math.pi / sides - 1e-6
+    omega0 = -math.sqrt(0.5 * G / R)
+    state = [R * math.cos(chi0), R * math.sin(chi0), chi0 + math.pi,
+             omega0 * -R * math.sin(chi0), omega0 * R * math.cos(chi0), omega0]
+    exact = run_one(make_params(sides=sides, beta_n=0.0, beta_t=0.0), state)
+    ode = run_one(make_params(sides=sides, beta_n=0.0, beta_t=0.0, friction=1e6), state)
+    assert exact[0] == ode[0]
+    assert math.isclose(exact[2], ode[2], rel_tol=1e-7)  # time of decision
+    w_exact = exact[4][exact[4][:, REC_KIND] == SEG_PIVOT, REC_STATE + 5]
+    w_ode = ode[4][ode[4][:, REC_KIND] == SEG_PIVOT_ODE, REC_STATE + 5]
+    assert len(w_ode) == len(w_exact) >= 2  # the transfers happen at the same corners
+    assert np.allclose(w_ode, w_exact, rtol=1e-7)  # with omega after each transfer
+
+
+def test_low_friction_lets_a_pivoting_corner_slide():
+    """A square rolling over a corner: with unlimited friction the corner stays put while the
+    die turns about it; with mu = 0.05 it slides."""
+    chi0 = math.pi / 2 + math.pi / 4 - 1e-6
+    omega0 = -math.sqrt(0.7 * G / R)  # over the top, no lift-off (as in the rolling test)
+    state = [R * math.cos(chi0), R * math.sin(chi0), chi0 + math.pi,
+             omega0 * -R * math.sin(chi0), omega0 * R * math.cos(chi0), omega0]
+    drift = {}
+    for friction in (math.inf, 0.05):
+        cfg = make_config(model="rigid", beta_t=0.0, friction=friction)
+        report = roll_config(cfg, state=state)
+        path = sample_path(cfg, report, np.linspace(0.0, 0.01, 11))
+        corner_x = path[:, 0] + R * np.cos(path[:, 2])  # corner 0, the pivot
+        drift[friction] = np.ptp(corner_x)
+    assert drift[math.inf] < 1e-9
+    assert drift[0.05] > 1e-5
+
+
+def test_loaded_die_centre_wobbles_about_the_com_parabola():
+    """Positions reported are the geometric centre's: in flight the centre of mass follows a
+    parabola exactly, the centre does not (it turns around the centre of mass)."""
+    offset = (0.004, 0.0)
+    cfg = make_config(com_offset=offset)
+    report = roll_config(cfg, state=[0.0, 0.3, 0.0, 0.0, 0.0, 30.0])
+    t = np.linspace(0.0, 0.12, 50)
+    centre = sample_path(cfg, report, t)
+    phi = centre[:, 2]
+    com_x = centre[:, 0] + offset[0] * np.cos(phi) - offset[1] * np.sin(phi)
+    com_y = centre[:, 1] + offset[0] * np.sin(phi) + offset[1] * np.cos(phi)
+    assert np.allclose(com_y, com_y[0] + (centre[0, 4] + 30.0 * offset[0]) * t - 0.5 * G * t * t, atol=1e-12)
+    assert np.allclose(com_x, com_x[0], atol=1e-12)
+    assert np.ptp(centre[:, 0]) > 0.007  # the centre circles the centre of mass
+
+
+def test_loaded_die_prefers_the_heavy_side(rng):
+    """A centre of mass moved towards side 2 of a square makes side 2 the most likely outcome
+    and barrier heights follow the centre-of-mass distances."""
+    states = random_states(rng, 800, y_range=(0.05, 0.2), omega_max=40.0)
+    fair, _, _, _ = run_batch(make_params(), states)
+    # side 2 of the square lies towards the body angle 5 pi/4 (between corners 2 and 3)
+    offset = 0.005 * np.array([math.cos(5 * math.pi / 4), math.sin(5 * math.pi / 4)])
+    loaded, status, _, _ = run_batch(make_params(com_offset=tuple(offset)), states)
+    assert np.all(status == STATUS_DECIDED)
+    share = np.bincount(loaded, minlength=4) / loaded.size
+    assert share[2] == share.max() and share[2] > np.mean(fair == 2) + 0.05
+
+
+def test_loaded_die_resting_flat_is_decided_on_its_side():
+    fpar, _ = make_params(com_offset=(0.002, -0.003))
+    centre = np.array([0.0, R * math.cos(math.pi / 4), math.pi / 4, 0.0, 0.0, 0.0])  # side 2 flat
+    com = np.empty(6)
+    shift_reference(centre, fpar, 1.0, com)
+    assert decided_side(com, fpar, 4) == 2
+    assert fpar[FP_INERTIA] == pytest.approx(R * R / 3 - (0.002**2 + 0.003**2), rel=1e-12)
