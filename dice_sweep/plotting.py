@@ -178,6 +178,20 @@ def outcome_title(cfg, complete=True):
         f"n = {cfg.die.sides}, beta_normal = {cfg.contact.beta_normal:g}, "
         f"beta_tangential = {cfg.contact.beta_tangential:g}, {walls}"
     )
+    extras = [] if cfg.contact.model == "paper" else [f"{cfg.contact.model} model"]
+    if math.isfinite(cfg.contact.friction):
+        extras.append(f"mu = {cfg.contact.friction:g}")
+    effects = cfg.effects
+    if effects.air_drag:
+        extras.append(f"drag {effects.air_drag:g}/m")
+    if any(effects.com_offset):
+        extras.append(f"loaded ({effects.com_offset[0]:g}, {effects.com_offset[1]:g}) m")
+    if effects.speed_restitution:
+        extras.append(f"k = {effects.speed_restitution:g} s/m")
+    if effects.gravity:
+        extras.append(f"g = {effects.gravity:g}")
+    if extras:
+        title += "\n" + ", ".join(extras)
     return title if complete else f"{title} (incomplete)"
 
 
@@ -230,6 +244,49 @@ def sweep_figure(sweep, *, box=None, dpi=150):
         extent=sweep.extent,
         dpi=dpi,
     )
+
+
+def plot_comparison(h5_paths, png_path, *, titles=None, dpi=100):
+    """Final-state diagrams of several sweep files side by side in one PNG.
+
+    Parameters
+    ----------
+    h5_paths : sequence of str or pathlib.Path
+        Sweep files (docs/hdf5.md), drawn left to right.
+    png_path : str or pathlib.Path
+        PNG to write.
+    titles : sequence of str, optional
+        One title per panel; default: each file's config title.
+    dpi : float
+        Pixels per inch.
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    from dice_sweep.config import parse_config
+    from dice_sweep.storage import read_sweep
+
+    sweeps = [read_sweep(path) for path in h5_paths]
+    width, height = OUTCOME_FIGSIZE
+    fig = Figure(figsize=(width * len(sweeps), height), dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    for i, sweep in enumerate(sweeps):
+        title = titles[i] if titles else outcome_title(parse_config(sweep.config_toml), sweep.complete)
+        draw_outcome_map(
+            fig.add_subplot(1, len(sweeps), i + 1),
+            sweep.outcome,
+            sweep.x.values,
+            sweep.y.values,
+            axis_label(sweep.x.param, sweep.x.unit),
+            axis_label(sweep.y.param, sweep.y.unit),
+            sweep.sides,
+            title=title,
+            extent=sweep.extent,
+        )
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)
 
 
 def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150):

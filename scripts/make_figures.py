@@ -3,7 +3,8 @@
 Each configs/figNN.toml is swept into out/figures/figNN.h5 and drawn to
 docs/figures/figNN.png; Figs 9 and 11 carry the box that Figs 10 and 12 zoom into (the box is
 read from those configs, so the two can never disagree). Fig. 5 is one roll of
-configs/table1.toml drawn like the paper's graphics window.
+configs/table1.toml drawn like the paper's graphics window. Beyond the paper: fig08 with the
+rigid contact law beside the paper's law, and a loaded die (configs/loaded_die.toml).
 
     python scripts/make_figures.py [--num 512] [--workers N]
 """
@@ -12,7 +13,7 @@ import argparse
 from pathlib import Path
 
 from dice_sweep.config import load_config
-from dice_sweep.plotting import plot_outcome_file, plot_roll
+from dice_sweep.plotting import plot_comparison, plot_outcome_file, plot_roll
 from dice_sweep.roll import roll_config
 from dice_sweep.sweep import run_sweep
 
@@ -34,7 +35,8 @@ def main():
     fig_dir = ROOT / "docs" / "figures"
     data_dir.mkdir(parents=True, exist_ok=True)
     fig_dir.mkdir(parents=True, exist_ok=True)
-    for config_path in sorted((ROOT / "configs").glob("fig*.toml")):
+    extra = [ROOT / "configs" / "loaded_die.toml"]
+    for config_path in sorted((ROOT / "configs").glob("fig*.toml")) + extra:
         name = config_path.stem
         cfg = load_config(config_path, [f"grid.x.num={args.num}", f"grid.y.num={args.num}"])
         h5_path = data_dir / f"{name}.h5"
@@ -43,6 +45,9 @@ def main():
         box = zoom_box(ZOOMS[name]) if name in ZOOMS else None
         plot_outcome_file(h5_path, fig_dir / f"{name}.png", box=box)
         print(f"{name}: {summary.rolls_computed} rolls in {summary.seconds:.1f} s -> docs/figures/{name}.png")
+    plot_comparison([data_dir / "fig08.h5", data_dir / "fig08_rigid.h5"], fig_dir / "fig08_paper_vs_rigid.png",
+                    titles=["paper contact law (eqs 9-13)", "rigid contact law (impulse at the corner)"])
+    print("fig08_paper_vs_rigid: side by side -> docs/figures/fig08_paper_vs_rigid.png")
     cfg = load_config(ROOT / "configs" / "table1.toml")
     plot_roll(cfg, roll_config(cfg), fig_dir / "fig05_roll.png")
     print("fig05_roll: one roll of configs/table1.toml -> docs/figures/fig05_roll.png")

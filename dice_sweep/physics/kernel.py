@@ -57,7 +57,7 @@ from dice_sweep.physics.pivot import (
     pivot_energy,
     pivot_next,
     pivot_ode,
-    pivot_turns,
+    below_the_top,
 )
 
 STATE_COLUMNS = ("x0", "y0", "phi0", "vx0", "vy0", "omega0")
@@ -254,7 +254,7 @@ def _roll_event(fpar, ipar, s, rec, counts):
             nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
             return side, STATUS_DECIDED, t, t, nrec
         if pivoting:
-            closed_form = smooth_pivot and not pivot_turns(fpar, n, corner, chi, s[5])
+            closed_form = smooth_pivot and not below_the_top(fpar, corner, chi, s[5])
             kind_rec = SEG_PIVOT if closed_form else SEG_PIVOT_ODE
             nrec = _record(rec, nrec, t, kind_rec, s, corner, px, chi, energy, EVENT_IMPACT)
         else:

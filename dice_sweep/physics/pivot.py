@@ -190,19 +190,19 @@ def first_wall_contact(fpar, n, corner, px, chi0, chi1, hit):
 
 
 @numba.njit(cache=True)
-def pivot_turns(fpar, n, corner, chi0, omega0):
-    """True when a pivot heading over the top lacks the energy to pass it and turns back.
+def below_the_top(fpar, corner, chi0, omega0):
+    """True when a pivot has less energy than it takes to pass over the top of its corner.
 
-    A fair die never does while its side is undecided (e >= g R); a loaded die can: pivoting on
+    A fair die never has while its side is undecided (e >= g R); a loaded die can: pivoting on
     a corner far from the centre of mass it may hold more than the barrier of its side yet
-    less than g rho of that corner. Those pivots are followed by :func:`pivot_ode`.
+    less than g rho of that corner, and then turns back or never reaches the top. The
+    closed-form time (an elliptic integral written for omega^2 > 0 at the top) does not apply;
+    such pivots are followed by :func:`pivot_ode` (test_loaded_die_prefers_the_heavy_side).
     """
     g = fpar[FP_G]
     rho, _ = corner_geometry(fpar, corner)
     alpha = fpar[FP_INERTIA] / (rho * rho)
-    direction = 1.0 if omega0 > 0.0 else -1.0 if omega0 < 0.0 else (1.0 if math.cos(chi0) < 0.0 else -1.0)
-    heading_up = direction * (0.5 * math.pi - chi0) > 0.0
-    return heading_up and pivot_energy(chi0, omega0, rho, g, alpha) < g * rho * (1.0 - BALANCE_TOL)
+    return pivot_energy(chi0, omega0, rho, g, alpha) < g * rho * (1.0 - BALANCE_TOL)
 
 
 @numba.njit(cache=True)
