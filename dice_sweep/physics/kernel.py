@@ -41,12 +41,13 @@ from dice_sweep.physics.params import (
     FP_RHO_MAX,
     FP_TMAX,
     FP_WALL,
+    IP_CONTINUE,
     IP_MAX_EVENTS,
     IP_METHOD,
     IP_N,
     METHOD_FIXED_STEP,
 )
-from dice_sweep.physics.outcome import decided_side, side_below  # noqa: F401 (re-exported)
+from dice_sweep.physics.outcome import decided_side, rest_height, side_below  # noqa: F401 (re-exported)
 from dice_sweep.physics.pivot import (
     PIVOT_BALANCED,
     PIVOT_DECIDED,
@@ -104,6 +105,7 @@ STICK_HEIGHT = 1e-8  # x R: a corner bouncing lower than this has come to rest (
 # if the rebound stays above STICK_HEIGHT: the paper's law on a loaded die can chatter at a
 # constant tiny amplitude (test_loaded_die_prefers_the_heavy_side ran out of events on it).
 CHATTER_LIMIT = 1000
+REST_ENERGY = 1e-9  # x g rho_max: a decided die this close to lying still is at rest
 
 
 @numba.njit(cache=True)
@@ -169,6 +171,14 @@ def _impact(s, fpar, ipar, surf, corner, counts):
 
 
 @numba.njit(cache=True)
+def _stopped(decided, status, t_decided, t, nrec):
+    """Result of a roll that stopped for ``status``: decided earlier (continuing) or not."""
+    if decided >= 0:
+        return decided, STATUS_DECIDED, t_decided, t, nrec
+    return -1, status, math.nan, t, nrec
+
+
+@numba.njit(cache=True)
 def _roll_event(fpar, ipar, s, rec, counts):
     n = ipar[IP_N]
     g = fpar[FP_G]
@@ -182,12 +192,14 @@ def _roll_event(fpar, ipar, s, rec, counts):
     hit = np.zeros(2, dtype=np.int64)
     out = np.zeros(5)
     after = np.empty(6)
+    keep_going = ipar[IP_CONTINUE] == 1
     t = 0.0
     energy = specific_energy(s, fpar)
     nrec = _record(rec, 0, t, SEG_FLIGHT, s, -1, 0.0, 0.0, energy, EVENT_START)
-    side = decided_side(s, fpar, n)
-    if side >= 0:
-        return side, STATUS_DECIDED, t, t, nrec
+    decided = decided_side(s, fpar, n)
+    t_decided = 0.0 if decided >= 0 else math.nan
+    if decided >= 0 and not keep_going:
+        return decided, STATUS_DECIDED, t, t, nrec
     pivoting = False
     corner = -1
     px = 0.0
@@ -201,9 +213,9 @@ def _roll_event(fpar, ipar, s, rec, counts):
         if not pivoting:
             tau = next_contact(s, fpar, ipar, t_max - t, tol, min_step, contact_speed, hit, after)
             if tau == NO_CONTACT:
-                return -1, STATUS_T_MAX, math.nan, t, nrec
+                return _stopped(decided, STATUS_T_MAX, t_decided, t_max, nrec)
             if tau == STALLED:
-                return -1, STATUS_STALLED, math.nan, t, nrec
+                return _stopped(decided, STATUS_STALLED, t_decided, t, nrec)
             s[:] = after
             t += tau
         else:
@@ -212,11 +224,11 @@ def _roll_event(fpar, ipar, s, rec, counts):
             if closed_form:
                 kind = pivot_next(fpar, n, corner, px, chi, s[5], out, hit)
             else:
-                kind = pivot_ode(fpar, n, corner, px, chi, s[5], slip, t_max - t, out, hit)
+                kind = pivot_ode(fpar, n, corner, px, chi, s[5], slip, t_max - t, not keep_going, out, hit)
             if kind == PIVOT_BALANCED:
-                return -1, STATUS_BALANCED, math.nan, t, nrec
+                return _stopped(decided, STATUS_BALANCED, t_decided, t, nrec)
             if kind == PIVOT_TIMEOUT or t + out[2] > t_max:
-                return -1, STATUS_T_MAX, math.nan, t, nrec
+                return _stopped(decided, STATUS_T_MAX, t_decided, t, nrec)
             if nrec > 0:
                 rec[nrec - 1, REC_CHI_END] = out[0]
             t += out[2]
@@ -249,17 +261,21 @@ def _roll_event(fpar, ipar, s, rec, counts):
             chi = math.atan2(-ry, -rx)
             counts[C_PIVOTS] += 1
         energy = specific_energy(s, fpar)
-        side = decided_side(s, fpar, n)
-        if side >= 0:
+        if decided < 0:
+            decided = decided_side(s, fpar, n)
+            t_decided = t if decided >= 0 else math.nan
+        if decided >= 0 and (not keep_going or energy - fpar[FP_G] * rest_height(fpar, n, decided) < REST_ENERGY * fpar[FP_G] * fpar[FP_RHO_MAX]):
+            if keep_going:
+                s[3:] = 0.0  # at rest: what motion is left is below REST_ENERGY
             nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
-            return side, STATUS_DECIDED, t, t, nrec
+            return decided, STATUS_DECIDED, t_decided, t, nrec
         if pivoting:
             closed_form = smooth_pivot and not below_the_top(fpar, corner, chi, s[5])
             kind_rec = SEG_PIVOT if closed_form else SEG_PIVOT_ODE
             nrec = _record(rec, nrec, t, kind_rec, s, corner, px, chi, energy, EVENT_IMPACT)
         else:
             nrec = _record(rec, nrec, t, SEG_FLIGHT, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
-    return -1, STATUS_EVENT_BUDGET, math.nan, t, nrec
+    return _stopped(decided, STATUS_EVENT_BUDGET, t_decided, t, nrec)
 
 
 @numba.njit(cache=True)
@@ -385,7 +401,7 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             corner = int(rec[seg, REC_CORNER])
             _, ry = corner_vector(start, fpar, corner)
             slip = 0.0 if math.isinf(fpar[FP_MU]) else start[3] - start[5] * ry
-            pivot_ode(fpar, ipar[IP_N], corner, rec[seg, REC_PX], rec[seg, REC_CHI], start[5], slip, tau, pivot_out, pivot_hit)
+            pivot_ode(fpar, ipar[IP_N], corner, rec[seg, REC_PX], rec[seg, REC_CHI], start[5], slip, tau, False, pivot_out, pivot_hit)
             com[:] = start
             _set_pivot_state(com, fpar, rec[seg, REC_PX] + pivot_out[3], pivot_out[0], pivot_out[1], corner)
             com[3] += pivot_out[4]
@@ -400,6 +416,27 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             omega = math.copysign(math.sqrt(max(w2, 0.0)), start[5] if start[5] != 0.0 else -math.cos(chi0))
             com[:] = start
             _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner)
+        elif rec[seg, REC_KIND] == SEG_END:
+            com[:] = start  # the simulation stopped here (decided, at rest, or out of time)
         else:
             advance_flight(start, tau, fpar, com)
         shift_reference(com, fpar, -1.0, out[i])
+
+
+@numba.njit(cache=True)
+def sample_batch(fpar, ipar, states, times, starts, out, out_outcome):
+    """Simulate many rolls and sample each at its own times: the fitting workhorse.
+
+    Roll i starts from ``states[i]`` (geometric centre) at time 0 and is sampled at
+    ``times[starts[i]:starts[i+1]]`` (s, ascending); the geometric centre's (x, y, phi, vx, vy,
+    omega) go to the same rows of ``out``. Set ipar[IP_CONTINUE] = 1 to follow dice past the
+    decision.
+    """
+    rec = np.empty((4096, REC_WIDTH))
+    counts = np.zeros(5, dtype=np.int32)
+    for i in range(states.shape[0]):
+        outcome, _, _, _, n_rec = roll_one(fpar, ipar, states[i], rec, counts)
+        out_outcome[i] = outcome
+        lo = starts[i]
+        hi = starts[i + 1]
+        sample_records(fpar, ipar, rec, n_rec, times[lo:hi], out[lo:hi])

@@ -50,3 +50,15 @@ def decided_side(s, fpar, n):
     return k if specific_energy(s, fpar) < barrier else -1
 
 
+
+
+@numba.njit(cache=True)
+def rest_height(fpar, n, side):
+    """Height (m) of the centre of mass above the table when the die lies on ``side``."""
+    rho_a, ang_a = corner_geometry(fpar, side)
+    rho_b, ang_b = corner_geometry(fpar, (side + 1) % n)
+    ax = rho_a * math.cos(ang_a)
+    ay = rho_a * math.sin(ang_a)
+    bx = rho_b * math.cos(ang_b)
+    by = rho_b * math.sin(ang_b)
+    return abs(ax * by - ay * bx) / math.hypot(bx - ax, by - ay)

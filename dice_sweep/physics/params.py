@@ -38,7 +38,8 @@ IP_N = 0  # number of sides
 IP_MODEL = 1  # contact model: MODEL_PAPER or MODEL_RIGID
 IP_METHOD = 2  # integrator: METHOD_EVENT or METHOD_FIXED_STEP
 IP_MAX_EVENTS = 3  # event budget per roll
-N_IPAR = 4
+IP_CONTINUE = 4  # 1: keep simulating after the decision, until rest or t_max (for fitting)
+N_IPAR = 5
 
 MODEL_PAPER = 0
 MODEL_RIGID = 1

@@ -425,10 +425,11 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
 
 
 @numba.njit(cache=True)
-def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, out, hit):
+def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision, out, hit):
     """Follow a pivot with Coulomb slip and/or air drag to its next event (ODE, RK4).
 
-    ``slip0`` is the corner's slip velocity (m/s) at the start. Same contract as
+    ``slip0`` is the corner's slip velocity (m/s) at the start; ``stop_at_decision`` False
+    ignores the decision event (for following a die to rest). Same contract as
     :func:`pivot_next`, plus out[3] = slid distance of the corner (m) and
     out[4] = its slip velocity (m/s) at the event, and two more results: PIVOT_DECIDED when
     friction or drag took the energy below the barrier, PIVOT_TIMEOUT when ``t_left`` (s) ran
@@ -466,6 +467,8 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, out, hit):
                 mode = 1 if y[3] > 0.0 else -1
             else:
                 mode = 1 if friction < 0.0 else -1  # slide against the force sticking needs
+        elif event == 5 and not stop_at_decision:
+            event = 0
         elif event != 0:
             kind = (PIVOT_FLAT, PIVOT_WALL, PIVOT_LIFTOFF, PIVOT_DECIDED)[event - 1 if event < 4 else 3]
             break
@@ -478,6 +481,8 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, out, hit):
             break
         _rk4_contact(y, h, mode, rho, inertia, g, mu, c, trial, k)
         probe = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+        if probe == 5 and not stop_at_decision:
+            probe = 0
         if probe != 0:
             # locate the event inside the step by bisection on the step length
             lo = 0.0
@@ -485,7 +490,8 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, out, hit):
             for _ in range(45):
                 mid = 0.5 * (lo + hi)
                 _rk4_contact(y, mid, mode, rho, inertia, g, mu, c, trial, k)
-                if _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit) != 0:
+                found = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                if found != 0 and (found != 5 or stop_at_decision):
                     hi = mid
                 else:
                     lo = mid

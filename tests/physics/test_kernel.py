@@ -191,3 +191,28 @@ def test_side_below_numbering():
     assert side_below(math.pi / 4, fpar, 4) == 2
     assert side_below(math.pi / 4 + 2 * math.pi / 4, fpar, 4) == 1
     assert side_below(-math.pi / 2 + 1e-9, fpar, 4) == 3
+
+
+@pytest.mark.parametrize("model", ["paper", "rigid"])
+def test_continued_roll_comes_to_rest_on_the_decided_side(model, rng):
+    """With IP_CONTINUE the kernel follows the die past the decision until it lies still: on
+    the decided side, its centre at the apothem, no longer moving."""
+    from dice_sweep.physics.kernel import sample_batch
+    from dice_sweep.physics.params import IP_CONTINUE
+
+    fpar, ipar = make_params(model=model, beta_t=0.0 if model == "rigid" else -0.35, t_max=3.0)
+    states = random_states(rng, 30, y_range=(0.03, 0.15))
+    stopped, _, _, _ = run_batch((fpar, ipar), states)
+    ipar = ipar.copy()
+    ipar[IP_CONTINUE] = 1
+    times = np.tile([2.9, 3.0], len(states))
+    starts = np.arange(0, times.size + 1, 2)
+    out = np.zeros((times.size, 6))
+    outcome = np.zeros(len(states), np.int8)
+    sample_batch(fpar, ipar, states, times, starts, out, outcome)
+    assert np.array_equal(outcome, stopped)
+    final = out[1::2]
+    assert np.allclose(final[:, 1], R * math.cos(math.pi / 4), atol=1e-6)
+    assert np.all(np.abs(final[:, 3:]) < 1e-3)
+    sides = [side_below(phi, fpar, 4) for phi in final[:, 2]]
+    assert sides == list(stopped)
