@@ -124,8 +124,12 @@ def _describe_roll(report):
 @click.option("--resume", is_flag=True, help="Finish an interrupted OUT.h5 of the same config and shard.")
 @_set_option
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary line.")
-def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet):
+@click.option("--refine", "refine_levels", type=int, metavar="LEVELS", help="Sweep 2^LEVELS times coarser, then refine only where neighbours disagree (docs/chaos.md).")
+def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, refine_levels=None):
     """Roll the die over the [grid] of CONFIG and write the outcome maps to OUT.h5.
+
+    With --refine LEVELS the grid is computed as a quadtree: OUT.h5 has the same maps at the
+    full resolution plus /simulated, the pixels rolled at their own centre (docs/hdf5.md).
 
     \b
     Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
@@ -135,7 +139,14 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet):
     cfg = _load(config, overrides)
     if cfg.grid is None:
         raise ConfigError(cfg.source, "grid", "missing; sweep needs a [grid] with x = {...} and y = {...} (use roll for one roll)")
-    summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=not quiet)
+    if refine_levels is not None:
+        from dice_sweep.refine import run_refined_sweep
+
+        if resume or shard != (0, 1):
+            raise DiceSweepError("--refine: cannot be combined with --shard or --resume (a refined sweep is written whole, at the end)")
+        summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=not quiet)
+    else:
+        summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=not quiet)
     if not quiet:
         click.echo(summary.describe())
     if png_path:
@@ -177,3 +188,54 @@ def plot(h5_path, png_path, box, dpi):
     from dice_sweep.plotting import plot_outcome_file
 
     _report_written(plot_outcome_file(h5_path, png_path, box=box, dpi=dpi))
+
+
+# --- chaos measures and control maps (issue 6, docs/chaos.md) -----------------------------
+
+
+@main.command()
+@click.argument("h5_path", metavar="OUT.h5")
+@click.option("--json", "json_path", metavar="OUT.json", help="Write every number (and the whole f(eps) curve) to this JSON file.")
+@click.option("--png", "png_dir", metavar="DIR", help="Draw uncertainty.png and box_entropy.png into this folder.")
+@click.option("--box-size", type=int, default=5, show_default=True, callback=_at_least_one, help="Box side in pixels for Sb and Sbb.")
+def measure(h5_path, json_path, png_dir, box_size):
+    """Measure the chaos of a sweep file: outcome fractions, Sb, Sbb and the uncertainty exponent.
+
+    \b
+    Example: dice-sweep measure out/fig08.h5 --json out/fig08_chaos.json --png out/fig08_chaos
+    """
+    from dice_sweep.chaos import run_measure
+
+    click.echo(run_measure(h5_path, box_size=box_size, json_path=json_path, png_dir=png_dir).describe())
+
+
+def _parse_sigmas(ctx, param, texts):
+    from dice_sweep.chaos import parse_sigma
+
+    return dict(parse_sigma(text) for text in texts)
+
+
+@main.command()
+@click.argument("h5_path", metavar="OUT.h5")
+@click.option("--sigma", "sigmas", multiple=True, callback=_parse_sigmas, metavar="PARAM=STD", help="Standard deviation of one initial value, in its SI unit (repeatable).")
+@click.option("--method", default="auto", show_default=True, metavar="auto|blur|monte_carlo", help="blur the map's outcomes, or roll; auto blurs when the map resolves every sigma.")
+@click.option("--samples", type=int, default=256, show_default=True, callback=_at_least_one, help="Monte Carlo rolls per point.")
+@click.option("--points", type=int, default=64, show_default=True, callback=_at_least_one, help="Monte Carlo points per axis, at most.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of the Monte Carlo draws.")
+@click.option("--workers", type=int, callback=_at_least_one, help="Worker processes for Monte Carlo [default: all cores].")
+@click.option("--json", "json_path", metavar="OUT.json", help="Write the summary to this JSON file.")
+@click.option("--png", "png_dir", metavar="DIR", help="Draw control.png (most likely side, its probability, entropy) into this folder.")
+@click.option("-o", "--output", "npz_path", metavar="OUT.npz", help="Save the probability maps as NumPy arrays.")
+def control(h5_path, sigmas, method, samples, points, seed, workers, json_path, png_dir, npz_path):
+    """Probability of each side for a thrower whose initial values scatter by --sigma.
+
+    \b
+    Example: dice-sweep control out/fig08.h5 --sigma y0=0.002 --sigma omega0=0.5 --png out/control
+    """
+    from dice_sweep.chaos import run_control
+
+    control_map = run_control(
+        h5_path, sigmas, json_path=json_path, png_dir=png_dir, npz_path=npz_path,
+        method=method, samples=samples, max_points=points, seed=seed, workers=workers,
+    )
+    click.echo(control_map.describe())

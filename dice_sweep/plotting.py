@@ -454,3 +454,151 @@ def animate_roll(cfg, report, gif_path, *, fps=30, max_frames=MAX_ANIMATION_FRAM
             clock.set_text(f"t = {t:.3f} s")
             writer.grab_frame()
     return Path(gif_path)
+
+
+# --- chaos measures, control maps, refinement (issue 6, docs/chaos.md) ----------------------
+
+PANEL_FIGSIZE = (6, 5)  # inches per panel of a row of maps
+
+
+def _panel_figure(panels, dpi):
+    """A Figure with one axes per panel in a row, and the list of axes."""
+    width, height = PANEL_FIGSIZE
+    fig = Figure(figsize=(width * panels, height), dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig, [fig.add_subplot(1, panels, i + 1) for i in range(panels)]
+
+
+def draw_scalar_map(ax, values, x_values, y_values, x_label, y_label, *, title=None, label=None,
+                    vmin=None, vmax=None, cmap="viridis", extent=None):
+    """Draw a map of one number per cell (an entropy, a probability, a level) with a colour bar.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    values : array_like of float, shape (ny, nx)
+        Row i belongs to ``y_values[i]``.
+    x_values, y_values : array_like of float
+        Cell centres (equally spaced), used for the extent unless ``extent`` is given.
+    x_label, y_label : str
+        Axis labels, see :func:`axis_label`.
+    title, label : str, optional
+        Title of the axes and of the colour bar.
+    vmin, vmax : float, optional
+        Colour range.
+    cmap : str
+        Matplotlib colour map name.
+    extent : tuple of 4 float, optional
+        (xmin, xmax, ymin, ymax).
+
+    Returns
+    -------
+    matplotlib.image.AxesImage
+    """
+    image = ax.imshow(
+        np.asarray(values, dtype=float), cmap=cmap, vmin=vmin, vmax=vmax, origin="lower",
+        extent=extent or (*_cell_extent(x_values), *_cell_extent(y_values)),
+        interpolation="nearest", aspect="auto",
+    )
+    colorbar = ax.figure.colorbar(image, ax=ax)
+    if label:
+        colorbar.set_label(label)
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    if title:
+        ax.set_title(title, fontsize="medium")
+    return image
+
+
+def plot_scalar_maps(panels, png_path, *, dpi=100):
+    """Maps of one number per cell side by side in one PNG.
+
+    Parameters
+    ----------
+    panels : sequence of dict
+        Keyword arguments of :func:`draw_scalar_map` (without ``ax``), one per panel.
+    png_path : str or pathlib.Path
+    dpi : float
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    fig, axes = _panel_figure(len(panels), dpi)
+    for ax, panel in zip(axes, panels):
+        draw_scalar_map(ax, **panel)
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)
+
+
+def plot_uncertainty_curves(curves, labels, png_path, *, title=None, dpi=100):
+    """The uncertain share f(eps) against eps, log-log, each with its fitted power law.
+
+    Parameters
+    ----------
+    curves : sequence of dice_sweep.chaos.UncertaintyCurve
+        Each has ``eps`` (pixels), ``fraction`` and ``fit`` (``alpha``, ``alpha_err``,
+        ``log_prefactor``, ``eps_lo``, ``eps_hi``, ``power_law``).
+    labels : sequence of str
+        Legend entry of each curve.
+    png_path : str or pathlib.Path
+    title : str, optional
+    dpi : float
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    fig, (ax,) = _panel_figure(1, dpi)
+    for curve, label, color in zip(curves, labels, _curve_colors(len(curves))):
+        shown = curve.fraction > 0
+        fit = curve.fit
+        law = "" if fit.power_law else ", no clean power law"
+        ax.loglog(curve.eps[shown], curve.fraction[shown], "o", color=color, markersize=4,
+                  label=f"{label}: alpha = {fit.alpha:.2f} +- {fit.alpha_err:.2f}{law}")
+        if math.isfinite(fit.alpha):
+            eps = np.geomspace(fit.eps_lo, fit.eps_hi, 20)
+            ax.loglog(eps, np.exp(fit.log_prefactor) * eps**fit.alpha, "-", color=color, linewidth=1.5)
+    ax.set_xlabel("perturbation eps (pixels)")
+    ax.set_ylabel("uncertain share f(eps)")
+    ax.legend(fontsize="x-small")
+    ax.set_title(title or "uncertainty exponent: f ~ eps^alpha on the fitted range (lines)", fontsize="medium")
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)
+
+
+def _curve_colors(count):
+    return [hsv_to_rgb((hue, 0.9, 0.8)) for hue in np.linspace(0.0, VIOLET_HUE, max(count, 1))]
+
+
+def plot_control_map(control, png_path, x_label, y_label, *, title=None, dpi=100):
+    """Most likely side, its probability and the outcome entropy of a control map, in one PNG.
+
+    Parameters
+    ----------
+    control : dice_sweep.chaos.ControlMap
+        ``most_likely``, ``p_max``, ``entropy``, axes values, ``sides``, ``method``, ``sigmas``.
+    png_path : str or pathlib.Path
+    x_label, y_label : str
+        Axis labels, see :func:`axis_label`.
+    title : str, optional
+        Suptitle; default names the method and the scatter.
+    dpi : float
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    fig, (ax_side, ax_p, ax_entropy) = _panel_figure(3, dpi)
+    axes = (control.x_values, control.y_values, x_label, y_label)
+    draw_outcome_map(ax_side, control.most_likely, *axes, control.sides, title="most likely side")
+    draw_scalar_map(ax_p, control.p_max, *axes, title="its probability", label="probability", vmin=0.0, vmax=1.0)
+    draw_scalar_map(ax_entropy, control.entropy, *axes, title="outcome entropy", label="nats",
+                    vmin=0.0, vmax=math.log(control.sides), cmap="magma")
+    sigmas = ", ".join(f"sigma({name}) = {value:g}" for name, value in control.sigmas.items())
+    fig.suptitle(title or f"{control.method.replace('_', ' ')}: {sigmas}", fontsize="medium")
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)

@@ -417,3 +417,43 @@ def read_sweep(path) -> SweepData:
     """
     with SweepFile.open(path) as sweep_file:
         return sweep_file.read()
+
+
+# --- adaptive refinement (dice_sweep.refine, issue 6) ------------------------------------
+
+SIMULATED = "simulated"  # uint8 map: 1 where the pixel's own centre was rolled
+REFINE_LEVEL = "refine_level"  # uint8 map: level whose roll gave the pixel its value
+
+
+def write_refinement_maps(sweep_file: SweepFile, refine_level: np.ndarray, levels: int) -> None:
+    """Add the maps of a quadtree refinement to a sweep file (docs/hdf5.md).
+
+    Parameters
+    ----------
+    sweep_file : SweepFile
+        A file just created for the refined sweep.
+    refine_level : numpy.ndarray
+        uint8 (ny, nx): level 0 .. ``levels`` whose roll gave each pixel its value.
+    levels : int
+        Number of refinement levels; pixels at this level were rolled at their own centre.
+    """
+    h5 = sweep_file._h5
+    ny, nx = sweep_file.header.shape
+    chunks = (min(sweep_file.header.tile_shape[0], ny), min(sweep_file.header.tile_shape[1], nx))
+    maps = {SIMULATED: (refine_level == levels).astype(np.uint8), REFINE_LEVEL: refine_level.astype(np.uint8)}
+    for name, values in maps.items():
+        dataset = h5.create_dataset(name, data=values, chunks=chunks, **_COMPRESSION)
+        for dim, axis_name in enumerate(("y", "x")):
+            dataset.dims[dim].label = axis_name
+            dataset.dims[dim].attach_scale(h5[axis_name])
+    h5.attrs["refine_levels"] = int(levels)
+    h5.flush()
+
+
+def read_refinement_maps(path) -> tuple[np.ndarray, np.ndarray, int] | None:
+    """(simulated as bool, refine_level, levels) of a refined sweep file; None for a full sweep."""
+    with SweepFile.open(path) as sweep_file:
+        h5 = sweep_file._h5
+        if SIMULATED not in h5:
+            return None
+        return h5[SIMULATED][...].astype(bool), h5[REFINE_LEVEL][...], int(h5.attrs["refine_levels"])

@@ -1,0 +1,112 @@
+"""Tests of dice_sweep.refine: the quadtree against full sweeps of the same grid."""
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dice_sweep.cli import main
+from dice_sweep.config import load_config
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.refine import (
+    boundary_cells,
+    check_levels,
+    compare_with_full,
+    refine_maps,
+    roll_states,
+    run_refined_sweep,
+)
+from dice_sweep.storage import read_refinement_maps, read_sweep
+from dice_sweep.sweep import SweepJob, initial_states, run_sweep
+
+
+def fig08(num):
+    return load_config("configs/fig08.toml", [f"grid.x.num={num}", f"grid.y.num={num}"])
+
+
+@pytest.fixture(scope="module")
+def full_fig08(tmp_path_factory):
+    """A full sweep of fig08 at 128 x 128."""
+    path = tmp_path_factory.mktemp("full") / "fig08.h5"
+    run_sweep(fig08(128), path, workers=1, progress=False)
+    return read_sweep(path)
+
+
+def test_boundary_cells_flag_both_sides_and_the_diagonals():
+    outcome = np.zeros((5, 5), dtype=np.int8)
+    outcome[2, 2] = 1
+    expected = np.zeros((5, 5), dtype=bool)
+    expected[1:4, 1:4] = True
+    assert (boundary_cells(outcome) == expected).all()
+    assert not boundary_cells(np.ones((3, 4))).any()
+
+
+def test_zero_levels_is_the_full_sweep(full_fig08):
+    refined = refine_maps(fig08(128), 0)
+    assert refined.rolls == 128 * 128 and refined.simulated.all()
+    for name, values in refined.maps.items():
+        stored = getattr(full_fig08, name) if "/" not in name else full_fig08.counts[name.split("/")[1]]
+        np.testing.assert_array_equal(values, stored, err_msg=name)
+
+
+def test_pixels_rolled_at_their_centre_equal_the_full_sweep(full_fig08):
+    refined = refine_maps(fig08(128), 3)
+    simulated = refined.simulated
+    assert 0 < simulated.sum() < simulated.size
+    np.testing.assert_array_equal(refined.maps["outcome"][simulated], full_fig08.outcome[simulated])
+    np.testing.assert_array_equal(refined.maps["t_decided"][simulated], full_fig08.t_decided[simulated])
+    assert refined.rolls == sum(refined.rolls_per_level) < 128 * 128
+    assert refined.rolls_per_level[0] == 16 * 16
+    # fig08's boundaries are smooth at this scale: refinement follows them all
+    assert compare_with_full(refined.maps["outcome"], full_fig08.outcome) < 0.01
+
+
+def test_every_pixel_on_a_boundary_of_the_refined_map_was_rolled():
+    refined = refine_maps(fig08(64), 2)
+    # boundaries are followed into blocks that were not refined
+    assert refined.simulated[boundary_cells(refined.maps["outcome"])].all()
+
+
+def test_levels_the_grid_cannot_be_halved_into_are_refused():
+    assert check_levels(fig08(64), 3) == (8, 8)
+    with pytest.raises(DiceSweepError, match="not divisible by 2\\^7"):
+        check_levels(fig08(64), 7)
+    with pytest.raises(DiceSweepError, match="allowed range"):
+        check_levels(fig08(64), -1)
+
+
+def test_rolls_do_not_depend_on_the_worker_count():
+    cfg = fig08(40)
+    job = SweepJob.from_config(cfg)
+    states = initial_states(cfg, job.xs, job.ys)  # 1600 rolls: one chunk per worker
+    one = roll_states(job, states, 1)
+    two = roll_states(job, np.concatenate([states] * 6), 2)  # several chunks
+    for single, parallel in zip(one, two):
+        np.testing.assert_array_equal(np.concatenate([single] * 6), parallel)
+
+
+def test_refined_file_has_the_sweep_layout_plus_the_mask(tmp_path, full_fig08):
+    path = tmp_path / "refined.h5"
+    summary = run_refined_sweep(fig08(128), path, 2, workers=1, progress=False)
+    stored = read_sweep(path)
+    assert stored.complete and stored.outcome.shape == (128, 128)
+    assert stored.config_toml == full_fig08.config_toml
+    np.testing.assert_array_equal(stored.x.values, full_fig08.x.values)
+    simulated, level, levels = read_refinement_maps(path)
+    assert levels == 2 and simulated.sum() == summary.simulated
+    assert (simulated == (level == 2)).all()
+    assert read_refinement_maps(full_fig08.path) is None
+    with pytest.raises(DiceSweepError, match="exists"):
+        run_refined_sweep(fig08(128), path, 2, workers=1, progress=False)
+
+
+def test_cli_refine(tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "r.h5"
+    result = runner.invoke(main, ["sweep", "configs/fig08.toml", "-o", str(out), "--refine", "2",
+                                  "--set", "grid.x.num=32", "--set", "grid.y.num=32", "--workers", "1"])
+    assert result.exit_code == 0, result.output
+    assert "refined over 2 levels" in result.output
+    for bad in (["--refine", "2", "--shard", "0/2"], ["--refine", "6"]):
+        result = runner.invoke(main, ["sweep", "configs/fig08.toml", "-o", str(tmp_path / "x.h5"), *bad,
+                                      "--set", "grid.x.num=32", "--set", "grid.y.num=32"])
+        assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
