@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: venv demo test figures bench clean
+.PHONY: venv demo test figures measured bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,8 +24,22 @@ demo: $(STAMP)
 figures: $(STAMP)
 	$(BIN)/python scripts/make_figures.py
 
+measured: $(STAMP)
+	$(BIN)/python scripts/measured_report.py
+
 bench: $(STAMP)
 	$(BIN)/python scripts/bench_kernel.py
+
+# The measured tables of docs/chaos.md (issue 6), one script call per table; minutes on 2 cores.
+.PHONY: chaos
+chaos: $(STAMP)
+	$(BIN)/python scripts/chaos_tables.py validation
+	$(BIN)/python scripts/chaos_tables.py sides
+	$(BIN)/python scripts/chaos_tables.py walls
+	$(BIN)/python scripts/chaos_tables.py time_step
+	$(BIN)/python scripts/chaos_tables.py contact
+	$(BIN)/python scripts/chaos_tables.py refine
+	$(BIN)/python scripts/chaos_tables.py control
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -289,6 +289,41 @@ def plot_comparison(h5_paths, png_path, *, titles=None, dpi=100):
     return Path(png_path)
 
 
+def plot_residual_curves(curves, png_path, *, dpi=100, bin_width=0.008):
+    """Median and 90th percentile of the per-frame pose error against time from the first
+    impact, one colour per fit (measured-data reports).
+
+    Parameters
+    ----------
+    curves : sequence of (label, times, errors)
+        ``times`` in s from each track's first impact, ``errors`` in m, one entry per frame.
+    png_path : str or pathlib.Path
+    dpi : float
+    bin_width : float
+        Width (s) of the time bins.
+    """
+    fig = Figure(figsize=(7, 4), dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    for label, times, errors in curves:
+        edges = np.arange(times.min(), times.max() + bin_width, bin_width)
+        which = np.digitize(times, edges)
+        centres, median, upper = [], [], []
+        for k in np.unique(which):
+            chosen = errors[which == k]
+            centres.append(times[which == k].mean())
+            median.append(np.median(chosen) * 1000)
+            upper.append(np.percentile(chosen, 90) * 1000)
+        line = ax.plot(centres, median, marker="o", label=f"{label} (median)")[0]
+        ax.plot(centres, upper, linestyle="--", color=line.get_color(), label=f"{label} (90th percentile)")
+    ax.axvline(0.0, color="grey", linewidth=0.8)
+    ax.set_xlabel("time from the first impact (s)")
+    ax.set_ylabel("pose error sqrt(dx^2 + dy^2 + (R dphi)^2) (mm)")
+    ax.legend(fontsize="small")
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)
+
+
 def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150):
     """Write the final-state diagram of an HDF5 sweep file (docs/hdf5.md) as a PNG.
 

@@ -138,8 +138,13 @@ def _fit_summary(cfg, fit, test_err):
     }
 
 
-def diagnose(trackset, cfg, *, test_fraction=0.3, seed=0, min_gain=MIN_GAIN, max_chain=4, candidates=None, log=None):
-    """Run the loop on tracked drops; returns the report dict (docs/measured.md)."""
+def diagnose(trackset, cfg, *, test_fraction=0.3, seed=0, min_gain=MIN_GAIN, max_chain=4, candidates=None, log=None,
+             keep_fits=False):
+    """Run the loop on tracked drops; returns the report dict (docs/measured.md).
+
+    With ``keep_fits`` the report also holds "_fits": [("baseline", fit), ("after", fit)] for
+    pictures (not JSON).
+    """
     say = log or (lambda message: None)
     train_set, test_set = trackset.split(test_fraction, seed)
     train = prepare_tracks(train_set, cfg)
@@ -199,4 +204,6 @@ def diagnose(trackset, cfg, *, test_fraction=0.3, seed=0, min_gain=MIN_GAIN, max
         "final_side_agreement": {"before": before_side, "after": after_side, "tracks": compared},
     }
     report["after"]["effects_added"] = list(current.spec.effects)
+    if keep_fits:
+        report["_fits"] = [("baseline", baseline), ("after: " + "+".join(current.spec.effects or ("none",)), current)]
     return report
