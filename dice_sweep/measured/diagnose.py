@@ -108,6 +108,29 @@ def first_impact_velocity_error(cfg, fit, prepared):
     return float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan
 
 
+def first_impact_spin(cfg, fit, prepared):
+    """How the simulated spin after the first impact compares with the tracked one: share of
+    tracks with the same sign, and the correlation (slopes of phi 6-50 ms after the impact)."""
+    model = TrackModel(cfg, fit.spec, prepared)
+    poses, _, _ = model.simulate(fit.params)
+    pairs = []
+    for i, track in enumerate(prepared):
+        rows = slice(model.starts[i], model.starts[i + 1])
+        after = (track.times > track.t_impact + 0.006) & (track.times < track.t_impact + 0.05)
+        if after.sum() < 4:
+            continue
+        t = track.times[after]
+        pairs.append((np.polyfit(t, track.pose[after, 2], 1)[0], np.polyfit(t, poses[rows][after, 2], 1)[0]))
+    if len(pairs) < 3:
+        return {"sign_agreement": math.nan, "correlation": math.nan, "tracks": len(pairs)}
+    measured, simulated = np.array(pairs).T
+    return {"sign_agreement": float(np.mean(np.sign(measured) == np.sign(simulated))),
+            "correlation": float(np.corrcoef(measured, simulated)[0, 1]),
+            "measured_range_rad_s": [float(measured.min()), float(measured.max())],
+            "simulated_range_rad_s": [float(simulated.min()), float(simulated.max())],
+            "tracks": len(pairs)}
+
+
 def final_side_agreement(cfg, fit, trackset):
     """Share of tracks whose simulated resting side equals the tracked one (tracks that end
     at rest, simulated to their last frame), and how many tracks were compared."""
@@ -202,6 +225,7 @@ def diagnose(trackset, cfg, *, test_fraction=0.3, seed=0, min_gain=MIN_GAIN, max
                                         "after": first_impact_velocity_error(cfg, current, test),
                                         "unit": "m/s"},
         "final_side_agreement": {"before": before_side, "after": after_side, "tracks": compared},
+        "first_impact_spin": {"before": first_impact_spin(cfg, baseline, test), "after": first_impact_spin(cfg, current, test)},
     }
     report["after"]["effects_added"] = list(current.spec.effects)
     if keep_fits:

@@ -122,5 +122,10 @@ def markdown_report(report):
               + ", ".join(f"{k} = {v:.4g}" for k, v in after["params"].items()),
               "", f"First-impact velocity error: {fiv['before']:.3f} m/s before, {fiv['after']:.3f} m/s after.",
               f"Simulated resting side equals the tracked one: {side['before']:.0%} before, {side['after']:.0%} after "
-              f"({side['tracks']} held-out tracks at rest at their end).", ""]
+              f"({side['tracks']} held-out tracks at rest at their end).",
+              "Spin after the first impact, simulated against tracked (held-out tracks): "
+              + "; ".join(f"{when}: same sign in {spin['sign_agreement']:.0%}, correlation {spin['correlation']:.2f}, "
+                          f"tracked {spin['measured_range_rad_s'][0]:.1f} to {spin['measured_range_rad_s'][1]:.1f} rad/s, "
+                          f"simulated {spin['simulated_range_rad_s'][0]:.1f} to {spin['simulated_range_rad_s'][1]:.1f} rad/s"
+                          for when, spin in report["first_impact_spin"].items()) + ".", ""]
     return "\n".join(lines)
