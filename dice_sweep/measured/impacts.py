@@ -5,7 +5,8 @@ and :mod:`dice_sweep.measured.calibrate` (restitution coefficients). Everything 
 arrays in the model's conventions (docs/calibration.md states the rules):
 
 * an impact is a local minimum of the lowest corner's height, below ``CONTACT_HEIGHT`` R above
-  the table, reached while that corner comes down faster than ``APPROACH_SPEED`` sqrt(g R);
+  the table, reached while that corner comes down faster than ``APPROACH_SPEED`` sqrt(g R)
+  over the two frames before;
 * on each side of it, the usable frames up to the neighbouring impact (at most ``FIT_FRAMES``,
   the impact's own frame left out) get a free-flight fit: x and phi linear in t, y a parabola
   of curvature -g;
@@ -24,7 +25,7 @@ from dice_sweep.geometry import DOWN, corner_angles, support
 __all__ = ["SideFit", "Impact", "find_impacts", "fit_impact", "track_impacts", "lowest_height", "touching_corner", "landing_tilt", "rest_pose", "table_level"]
 
 CONTACT_HEIGHT = 0.1  # R: a lower minimum of the lowest corner may be an impact
-APPROACH_SPEED = 0.05  # sqrt(g R): slower descents are noise of a die at rest
+APPROACH_SPEED = 0.2  # sqrt(g R): slower descents are rocking, or noise of a die at rest
 FIT_FRAMES = 5  # frames at most on each side of an impact
 MIN_FIT_FRAMES = 3  # fewer frames leave no check on a two-parameter fit
 MAX_GAP_FRAMES = 16  # frames an impact may have dropped (the largest seen in flight is 13)
@@ -154,14 +155,15 @@ def find_impacts(t, y, phi, usable, *, sides, circumradius, table=0.0, g=9.81):
     if index.size < 3:
         return []
     height = lowest_height(sides, circumradius, y[index], phi[index], table)
-    descent = -np.diff(height) / np.diff(t[index])  # > 0 while the lowest corner comes down
     min_speed = APPROACH_SPEED * math.sqrt(g * circumradius)
-    inner = np.arange(1, index.size - 1)
+    inner = np.arange(2, index.size - 1)
+    # over two frames, so that the tracker's noise of a die at rest does not look like impacts
+    descent = (height[inner - 2] - height[inner]) / (t[index[inner]] - t[index[inner - 2]])
     found = (
         (height[inner] < CONTACT_HEIGHT * circumradius)
         & (height[inner] <= height[inner - 1])
         & (height[inner] < height[inner + 1])
-        & (descent[inner - 1] > min_speed)
+        & (descent > min_speed)
     )
     return [int(i) for i in index[inner[found]]]
 

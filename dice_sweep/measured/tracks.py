@@ -52,9 +52,9 @@ NEIGHBOUR_STEPS = 3  # steps on each side that give the local median motion
 GAP_ROUNDING = 0.25
 GAP_MISMATCH = 0.3
 MOTION_FLOOR = 0.005  # circumradii per frame: slower local motion cannot reveal a gap
-NOISE_FLOOR_SIGMAS = 8.0  # ... nor motion within this many noise sigmas of a step
+NOISE_FLOOR_SIGMAS = 4.0  # ... nor motion within this many noise sigmas of a step
 # Angle convention
-STANDARD_G = 9.81  # m/s^2: free fall in the impact fits of the sign test (no config here)
+STANDARD_G = 9.81  # m/s^2: free fall taken out for the gap test and the sign test (no config here)
 CLEAR_MAJORITY = 0.75  # share of the votes above which the sign is called clear
 MAD_TO_SIGMA = 1.4826  # standard deviation of Gaussian noise per median absolute deviation
 
@@ -193,21 +193,22 @@ def _open_text(path):
 
 
 def _read_rows(path):
-    """Header names (lower case) and data rows of a CSV file."""
+    """Header names (lower case), data rows and the file line number of each row."""
     try:
         with _open_text(path) as file:
-            rows = [row for row in csv.reader(file) if row and any(cell.strip() for cell in row)]
+            reader = csv.reader(file)
+            numbered = [(reader.line_num, row) for row in reader if row and any(cell.strip() for cell in row)]
     except (UnicodeDecodeError, gzip.BadGzipFile, EOFError, csv.Error) as error:
         raise DiceSweepError(f"{path}: file: not readable as CSV text ({error})") from None
-    if not rows:
+    if not numbered:
         raise DiceSweepError(f"{path}: file: empty (allowed: a header line, e.g. traj,t,x,y,phi, and data rows)")
-    header = [name.strip().lower() for name in rows[0]]
-    if len(rows) < 2:
+    header = [name.strip().lower() for name in numbered[0][1]]
+    if len(numbered) < 2:
         raise DiceSweepError(f"{path}: file: no data rows after the header (allowed: at least one row)")
-    return header, rows[1:]
+    return header, [row for _, row in numbered[1:]], np.array([line for line, _ in numbered[1:]])
 
 
-def _column(path, header, rows, name, allowed):
+def _column(path, header, rows, lines, name, allowed):
     """The column ``name`` as float64, missing cells as NaN; one-line error if not numbers."""
     index = header.index(name)
     cells = [row[index].strip() if index < len(row) else "" for row in rows]
@@ -219,7 +220,7 @@ def _column(path, header, rows, name, allowed):
             try:
                 float(cell)
             except ValueError:
-                raise DiceSweepError(f"{path}: column '{name}': line {i + 2}: {cell!r} is not a number (allowed: {allowed})") from None
+                raise DiceSweepError(f"{path}: column '{name}': line {lines[i]}: {cell!r} is not a number (allowed: {allowed})") from None
         raise
 
 
@@ -238,35 +239,36 @@ def _require(path, header, names, allowed):
 
 
 def _read_columns(path, rate):
-    """traj, t (s), x, y (m), angle (rad, file convention) and the row format of a track file."""
-    header, rows = _read_rows(path)
+    """Columns of a track file: traj, t (s), x, y (m), angle (rad, file convention), the layout
+    ("pose" or "marker"), the time column's name and each row's line number."""
+    header, rows, lines = _read_rows(path)
     traj_name = _require(path, header, ("traj",), "a 'traj' column of trajectory ids")
-    traj = _column(path, header, rows, traj_name, "integer trajectory ids")
+    traj = _column(path, header, rows, lines, traj_name, "integer trajectory ids")
     bad = ~np.isfinite(traj) | (traj != np.round(traj))
     if bad.any():
-        line = int(np.argmax(bad)) + 2
-        raise DiceSweepError(f"{path}: column 'traj': line {line}: {traj[line - 2]} is not a trajectory id (allowed: integers)")
+        row = int(np.argmax(bad))
+        raise DiceSweepError(f"{path}: column 'traj': line {lines[row]}: {traj[row]} is not a trajectory id (allowed: integers)")
     if "t" in header:
-        t = _column(path, header, rows, "t", "times in s")
+        t = _column(path, header, rows, lines, "t", "times in s")
         time_name = "t"
     elif "frame" in header:
         if rate is None:
             raise DiceSweepError(f"{path}: column 'frame': needs the frame rate (allowed: --rate HZ with a 'frame' column, or a 't' column in s)")
-        t = _column(path, header, rows, "frame", "frame numbers") / rate
+        t = _column(path, header, rows, lines, "frame", "frame numbers") / rate
         time_name = "frame"
     else:
         raise DiceSweepError(f"{path}: column 't': missing (allowed: 't' in s, or 'frame' with --rate HZ; header is {','.join(header)})")
     if not np.isfinite(t).all():
-        line = int(np.argmax(~np.isfinite(t))) + 2
+        line = lines[np.argmax(~np.isfinite(t))]
         raise DiceSweepError(f"{path}: column '{time_name}': line {line}: missing (allowed: a finite time on every row)")
     pose_allowed = "pose columns x, y (or z), phi (or theta), or marker columns cx, cy, kx, ky"
     if "x" in header or not all(name in header for name in MARKER_COLUMNS):
-        x = _column(path, header, rows, _require(path, header, ("x",), pose_allowed), "x in m")
-        y = _column(path, header, rows, _require(path, header, POSE_ALIASES["y"], pose_allowed), "heights in m")
-        angle = _column(path, header, rows, _require(path, header, POSE_ALIASES["phi"], pose_allowed), "angles in rad")
-        return traj.astype(np.int64), t, x, y, angle, "pose", time_name
-    cx, cy, kx, ky = (_column(path, header, rows, name, "positions in m") for name in MARKER_COLUMNS)
-    return traj.astype(np.int64), t, cx, cy, np.arctan2(ky - cy, kx - cx), "marker", time_name
+        x = _column(path, header, rows, lines, _require(path, header, ("x",), pose_allowed), "x in m")
+        y = _column(path, header, rows, lines, _require(path, header, POSE_ALIASES["y"], pose_allowed), "heights in m")
+        angle = _column(path, header, rows, lines, _require(path, header, POSE_ALIASES["phi"], pose_allowed), "angles in rad")
+        return {"traj": traj.astype(np.int64), "t": t, "x": x, "y": y, "angle": angle, "layout": "pose", "time": time_name, "lines": lines}
+    cx, cy, kx, ky = (_column(path, header, rows, lines, name, "positions in m") for name in MARKER_COLUMNS)
+    return {"traj": traj.astype(np.int64), "t": t, "x": cx, "y": cy, "angle": np.arctan2(ky - cy, kx - cx), "layout": "marker", "time": time_name, "lines": lines}
 
 
 def _unwrap_finite(angle):
@@ -277,16 +279,20 @@ def _unwrap_finite(angle):
     return out
 
 
-def _split_by_traj(path, traj, t, time_name):
+def _split_by_traj(path, columns):
     """Row indices of each trajectory, in order of first appearance; times must increase."""
+    traj, t = columns["traj"], columns["t"]
     ids, first = np.unique(traj, return_index=True)
     groups = []
     for traj_id in ids[np.argsort(first)]:
         rows = np.flatnonzero(traj == traj_id)
         steps = np.diff(t[rows])
         if (steps <= 0).any():
-            line = int(rows[np.argmax(steps <= 0) + 1]) + 2
-            raise DiceSweepError(f"{path}: column '{time_name}': line {line}: trajectory {traj_id} does not increase in time (allowed: strictly increasing times within a trajectory)")
+            line = columns["lines"][rows[np.argmax(steps <= 0) + 1]]
+            raise DiceSweepError(
+                f"{path}: column '{columns['time']}': line {line}: trajectory {traj_id} does not increase in time "
+                "(allowed: strictly increasing times within a trajectory)"
+            )
         groups.append((int(traj_id), rows))
     return groups
 
@@ -294,15 +300,16 @@ def _split_by_traj(path, traj, t, time_name):
 # --- local motion --------------------------------------------------------------------------
 
 
-def _neighbour_median(steps):
-    """Median of the NEIGHBOUR_STEPS steps on each side of every step (the step itself left out).
+def _neighbour_median(steps, sides=(-1, 1)):
+    """Median of the NEIGHBOUR_STEPS steps before (-1) and/or after (+1) every step, the step
+    itself left out.
 
     ``steps`` is (m, 3); rows of NaN do not count. Returns (m, 3), NaN where no neighbour exists.
     """
     m = steps.shape[0]
     padded = np.full((m + 2 * NEIGHBOUR_STEPS, steps.shape[1]), np.nan)
     padded[NEIGHBOUR_STEPS : NEIGHBOUR_STEPS + m] = steps
-    offsets = [o for o in range(-NEIGHBOUR_STEPS, NEIGHBOUR_STEPS + 1) if o != 0]
+    offsets = [side * o for side in sides for o in range(1, NEIGHBOUR_STEPS + 1)]
     window = np.stack([padded[NEIGHBOUR_STEPS + o : NEIGHBOUR_STEPS + o + m] for o in offsets], axis=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows give NaN, as meant
@@ -325,8 +332,13 @@ def _pose(x, y, angle, circumradius):
     return np.column_stack((x, y, circumradius * angle))
 
 
-def _find_gaps(frame, pose, circumradius):
+def _find_gaps(frame, pose, circumradius, rate):
     """Frames dropped before each step between valid rows (0 for most steps).
+
+    A step is k >= 2 frames long when it is k times the mean of the median steps before and
+    after it, coordinate by coordinate (exact in free flight, where each coordinate's step
+    changes linearly with time), and the steps before and after it differ by free fall only
+    (no impact in between).
 
     Parameters
     ----------
@@ -334,8 +346,8 @@ def _find_gaps(frame, pose, circumradius):
         Frame number of each valid row.
     pose : ndarray, shape (N, 3)
         Poses of the valid rows (from :func:`_pose`).
-    circumradius : float
-        R, m.
+    circumradius, rate : float
+        R (m) and the frame rate (Hz).
 
     Returns
     -------
@@ -344,21 +356,26 @@ def _find_gaps(frame, pose, circumradius):
     """
     steps = np.diff(pose, axis=0)
     file_frames = np.diff(frame)
+    fall = np.array([0.0, STANDARD_G / rate**2, 0.0])  # how much a height step shrinks per frame
     frames = file_frames.astype(float)
-    noise = np.linalg.norm(_step_noise(steps, file_frames))
-    floor = max(MOTION_FLOOR * circumradius, NOISE_FLOOR_SIGMAS * noise)
+    noise = _step_noise(steps, file_frames)
+    floor = max(MOTION_FLOOR * circumradius, NOISE_FLOOR_SIGMAS * float(np.linalg.norm(noise)))
     for _ in range(3):  # a gap next to a gap is found once its neighbour is
-        local = _neighbour_median(steps / frames[:, None])
+        unit = steps / frames[:, None]
+        before, after = _neighbour_median(unit, (-1,)), _neighbour_median(unit, (1,))
+        local = 0.5 * (before + after)
         speed2 = np.einsum("ij,ij->i", local, local)
         with np.errstate(invalid="ignore", divide="ignore"):
             estimate = np.einsum("ij,ij->i", steps, local) / speed2
         count = np.round(estimate)
-        mismatch = np.linalg.norm(steps - count[:, None] * local, axis=1)
+        allowed = GAP_MISMATCH * np.abs(local) + 3.0 * noise * np.sqrt(np.maximum(count, 1.0))[:, None]
         found = (
             (speed2 > floor**2)
             & (count > frames)
             & (np.abs(estimate - count) < GAP_ROUNDING)
-            & (mismatch < GAP_MISMATCH * np.sqrt(speed2) + 3.0 * noise * np.sqrt(np.maximum(count, 1.0)))
+            & (np.abs(steps - count[:, None] * local) < allowed).all(axis=1)
+            # the medians sit NEIGHBOUR_STEPS - 1 frames before and after the k frames
+            & (np.abs(before - after - fall * (count + 2 * NEIGHBOUR_STEPS - 3)[:, None]) < allowed).all(axis=1)
         )
         if not found.any():
             break
@@ -542,7 +559,7 @@ def _prepare_track(t, x, y, angle, rate, sides, circumradius, gaps):
     valid = np.flatnonzero(np.isfinite(pose).all(axis=1))
     inserted = np.zeros(t.size, dtype=np.int64)  # frames inserted before each row
     if gaps == "auto" and valid.size >= 3:
-        inserted[valid[1:]] = _find_gaps(frame[valid], pose[valid], circumradius)
+        inserted[valid[1:]] = _find_gaps(frame[valid], pose[valid], circumradius, rate)
     frame = frame + np.cumsum(inserted)
     total = int(frame[-1]) + 1 if t.size else 0
     grid_pose = np.full((total, 3), np.nan)
@@ -590,16 +607,19 @@ def load_tracks(path, *, sides, circumradius, rate=None, angle="auto", gaps="aut
     """
     path = str(path)
     _check_options(path, rate, angle, gaps)
-    traj, t, x, y, file_angle, layout, time_name = _read_columns(path, rate)
-    groups = _split_by_traj(path, traj, t, time_name)
+    columns = _read_columns(path, rate)
+    groups = _split_by_traj(path, columns)
+    t, x, y = columns["t"], columns["x"], columns["y"]
     if rate is None:
         steps = np.concatenate([np.diff(t[rows]) for _, rows in groups])
         if steps.size == 0:
-            raise DiceSweepError(f"{path}: column '{time_name}': one row per trajectory gives no frame rate (allowed: --rate HZ, or two rows or more)")
+            raise DiceSweepError(f"{path}: column '{columns['time']}': one row per trajectory gives no frame rate (allowed: --rate HZ, or two rows or more)")
         rate = 1.0 / float(np.median(steps))
     raws = []
     for _, rows in groups:
-        track_angle = _unwrap_finite(file_angle[rows]) if layout == "marker" else file_angle[rows]
+        track_angle = columns["angle"][rows]
+        if columns["layout"] == "marker":  # atan2 of the dots wraps at pi
+            track_angle = _unwrap_finite(track_angle)
         raws.append(_prepare_track(t[rows], x[rows], y[rows], track_angle, rate, sides, circumradius, gaps))
     if angle == "auto":
         sign, offset, note = _angle_convention(raws, sides, circumradius)
