@@ -75,7 +75,9 @@ def calls(monkeypatch):
 
 def test_every_command_has_help_ending_with_an_example():
     commands = [("", cli.main)] + [(name, command) for name, command in cli.main.commands.items()]
-    assert {name for name, _ in commands} == {"", "roll", "sweep", "merge", "plot"}
+    # at least the commands of the issues so far; any added command is checked the same way
+    expected = {"", "roll", "sweep", "merge", "plot", "measure", "control", "calibrate", "fit", "diagnose"}
+    assert expected <= {name for name, _ in commands}
     for name, command in commands:
         last_line = command.help.strip().splitlines()[-1].strip()
         assert last_line.startswith("Example: dice-sweep "), name
