@@ -9,8 +9,13 @@ frame only; tests/physics/test_impact.py::test_walls_are_mirror_images caught it
 ``corner_impulse`` is the impulse P at the actual corner r (from the centre of mass) through
 the contact mass matrix K = 1 + r_perp r_perp^T / I (per unit mass): Newton restitution on the
 corner's normal velocity, u_n' = -beta_n u_n, the tangential target u_t' = -beta_t u_t, and a
-Coulomb cap |P_t| <= mu P_n whose sliding branch is P_t = -sign(u_t) mu P_n with P_n from the
-normal condition (Stronge 2000; Brach 1991). Such laws can create kinetic energy at an
+Coulomb cap |P_t| <= mu P_n (Stronge 2000; Brach 1991). When the target impulse leaves the
+friction cone, the impulse is taken on the cone's edge on the side of the target,
+P_t = sign(P_t target) mu P_n, with P_n from the normal condition. The textbook sliding branch
+P_t = -sign(u_t) mu P_n disagrees with that when the normal impulse, by spinning the die, throws
+the corner back: then the impulse that would stop the slip points along the incoming slip, and
+-sign(u_t) makes friction push the corner along its slip for most of the impact. The pymunk
+comparison (docs/validation.md) found that; Chipmunk clamps to the cone edge the same way. Such laws can create kinetic energy at an
 off-centre corner (Kane's and Stronge's examples). The energy change of an impulse is exactly
 dT = P . u + P^T K P / 2, so the law checks it and, when it is positive or the normal impulse
 would pull, moves the impulse towards the frictionless one (a purely normal impulse meeting
@@ -111,12 +116,12 @@ def corner_impulse(s, inertia, beta_n, beta_t, mu, rx, ry, nx, ny):
     # frictionless reference: purely normal, same normal condition; never gains, never pulls
     f_n = du_n / k_nn
     if not math.isinf(mu) and (p_n <= 0.0 or abs(p_t) > mu * p_n):
-        # sliding branch: friction at its cap against the incoming slip
-        slip = 1.0 if u_t > 0.0 else -1.0 if u_t < 0.0 else (-1.0 if p_t > 0.0 else 1.0)
-        denom = k_nn - slip * mu * k_tn
+        # on the cone's edge, on the side of the target impulse (see the module docstring)
+        side = 1.0 if p_t > 0.0 else -1.0 if p_t < 0.0 else (-1.0 if u_t > 0.0 else 1.0)
+        denom = k_nn + side * mu * k_tn
         if denom > 0.0:
             p_n = du_n / denom
-            p_t = -slip * mu * p_n
+            p_t = side * mu * p_n
         else:  # no sliding impulse meets the normal condition (a jam): frictionless
             p_n = f_n
             p_t = 0.0

@@ -20,6 +20,7 @@ from dice_sweep.physics.flight import (
     STALLED,
     SURF_TABLE,
     advance_flight,
+    corner_offset,
     next_contact,
     surface_frame,
 )
@@ -47,7 +48,7 @@ from dice_sweep.physics.params import (
     IP_N,
     METHOD_FIXED_STEP,
 )
-from dice_sweep.physics.outcome import decided_side, rest_height, side_below  # noqa: F401 (re-exported)
+from dice_sweep.physics.outcome import DECISION_MARGIN, decided_side, rest_height, side_below  # noqa: F401
 from dice_sweep.physics.pivot import (
     PIVOT_BALANCED,
     PIVOT_DECIDED,
@@ -82,6 +83,7 @@ SEG_FLIGHT = 0
 SEG_PIVOT = 1  # closed-form (conservative, sticking) pivot
 SEG_END = 2
 SEG_PIVOT_ODE = 3  # pivot followed by the ODE (slip, drag, or a loaded die turning back)
+SEG_SLIDE = 4  # lying flat on a side and sliding to a stop under Coulomb friction
 EVENT_START = 0
 EVENT_IMPACT = 1
 EVENT_LIFTOFF = 2
@@ -171,6 +173,77 @@ def _impact(s, fpar, ipar, surf, corner, counts):
 
 
 @numba.njit(cache=True)
+def _flat_side(s, fpar, n, speed):
+    """The side the die lies flat on (both its corners on the table, neither moving in or out
+    faster than ``speed``), or -1."""
+    side = side_below(s[2], fpar, n)
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    for corner in (side, (side + 1) % n):
+        rx, ry = corner_offset(fpar, corner, c, sn)
+        if s[1] + ry > 1e-9 * fpar[FP_RHO_MAX] or abs(s[4] + s[5] * rx) > speed:
+            return -1
+    return side
+
+
+@numba.njit(cache=True)
+def _slide_time(speed, fpar, side, n, to_rest):
+    """Time (s) a die lying flat on ``side`` and sliding at ``speed`` (m/s) takes, under
+    Coulomb friction, to stop (``to_rest``) or to fall below the decision barrier."""
+    decel = fpar[FP_MU] * fpar[FP_G]
+    if math.isinf(decel) or speed == 0.0:
+        return 0.0
+    if decel == 0.0:  # frictionless: it slides for ever, on a side it can no longer leave
+        return math.inf if to_rest else 0.0
+    if to_rest:
+        return speed / decel
+    rho_a, _ = corner_geometry(fpar, side)
+    rho_b, _ = corner_geometry(fpar, (side + 1) % n)
+    spare = fpar[FP_G] * (min(rho_a, rho_b) * (1.0 - DECISION_MARGIN) - rest_height(fpar, n, side))
+    decided_speed = math.sqrt(max(2.0 * spare, 0.0)) * (1.0 - 1e-9)
+    return max(speed - decided_speed, 0.0) / decel
+
+
+@numba.njit(cache=True)
+def _time_to_wall(s, fpar, n):
+    """Time (s) until a flat die sliding under friction reaches a wall (inf: never)."""
+    half_width = fpar[FP_WALL]
+    decel = fpar[FP_MU] * fpar[FP_G]
+    if math.isinf(half_width) or s[3] == 0.0 or math.isinf(decel):
+        return math.inf
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    reach = 0.0
+    for corner in range(n):
+        rx, _ = corner_offset(fpar, corner, c, sn)
+        reach = max(reach, rx if s[3] > 0.0 else -rx)
+    gap = half_width - reach - (s[0] if s[3] > 0.0 else -s[0])
+    speed = abs(s[3])
+    if decel == 0.0:
+        return max(gap, 0.0) / speed
+    disc = speed * speed - 2.0 * decel * gap
+    if disc < 0.0:
+        return math.inf
+    return (speed - math.sqrt(disc)) / decel
+
+
+@numba.njit(cache=True)
+def _slide(s, fpar, tau):
+    """Advance a flat, sliding die by tau seconds of friction-limited deceleration."""
+    decel = fpar[FP_MU] * fpar[FP_G]
+    if math.isinf(decel):
+        s[3] = 0.0
+        return
+    sign = 1.0 if s[3] > 0.0 else -1.0
+    if decel > 0.0:
+        tau = min(tau, abs(s[3]) / decel)
+    s[0] += s[3] * tau - 0.5 * sign * decel * tau * tau
+    s[3] -= sign * decel * tau
+    if abs(s[3]) < 1e-15:
+        s[3] = 0.0
+
+
+@numba.njit(cache=True)
 def _stopped(decided, status, t_decided, t, nrec):
     """Result of a roll that stopped for ``status``: decided earlier (continuing) or not."""
     if decided >= 0:
@@ -247,6 +320,32 @@ def _roll_event(fpar, ipar, s, rec, counts):
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
         u_n = _impact(s, fpar, ipar, surf, corner, counts)
+        flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
+        if flat >= 0:
+            # Lying flat on a side, both corners down: the die slides (finite friction) or
+            # stops (unlimited friction) on that side; without this phase the two corners
+            # traded pivots at one instant until the event budget ran out (docs/validation.md).
+            s[1] = rest_height(fpar, n, flat)
+            s[4] = 0.0
+            s[5] = 0.0
+            if math.isinf(fpar[FP_MU]):
+                s[3] = 0.0
+            nrec = _record(rec, nrec, t, SEG_SLIDE, s, flat, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
+            to_decision = _slide_time(abs(s[3]), fpar, flat, n, False)
+            tau = _slide_time(abs(s[3]), fpar, flat, n, True) if keep_going else to_decision
+            to_wall = _time_to_wall(s, fpar, n)
+            tau = min(tau, t_max - t, to_wall)
+            _slide(s, fpar, tau)
+            if tau == to_wall:
+                s[3] = 0.0  # a plastic stop against the wall
+            if decided < 0:
+                decided = flat
+                t_decided = t + min(to_decision, tau)
+            t += tau
+            if keep_going and fpar[FP_MU] > 0.0:
+                s[3] = 0.0
+            nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
+            return decided, STATUS_DECIDED, t_decided, t, nrec
         pivoting = surf == SURF_TABLE and (u_n < stick_speed or chatter >= CHATTER_LIMIT)
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
@@ -416,6 +515,9 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             omega = math.copysign(math.sqrt(max(w2, 0.0)), start[5] if start[5] != 0.0 else -math.cos(chi0))
             com[:] = start
             _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner)
+        elif rec[seg, REC_KIND] == SEG_SLIDE:
+            com[:] = start
+            _slide(com, fpar, tau)
         elif rec[seg, REC_KIND] == SEG_END:
             com[:] = start  # the simulation stopped here (decided, at rest, or out of time)
         else:

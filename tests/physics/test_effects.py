@@ -151,3 +151,55 @@ def test_loaded_die_resting_flat_is_decided_on_its_side():
     shift_reference(centre, fpar, 1.0, com)
     assert decided_side(com, fpar, 4) == 2
     assert fpar[FP_INERTIA] == pytest.approx(R * R / 3 - (0.002**2 + 0.003**2), rel=1e-12)
+
+
+def test_capped_impulse_sits_on_the_cone_edge_on_the_targets_side():
+    """When the target impulse leaves the friction cone, friction takes the cone's edge on
+    the target's side (as Chipmunk does), even when the normal impulse throws the corner
+    back against its incoming slip (the case docs/validation.md traced)."""
+    from dice_sweep.physics.impact import corner_impulse, corner_normal_velocity
+
+    inertia = R * R / 3
+    rng = np.random.default_rng(11)
+    seen_against_slip = 0
+    for _ in range(3000):
+        ang = rng.uniform(-math.pi + 0.2, -0.2)
+        rx, ry = R * math.cos(ang), R * math.sin(ang)
+        s = np.array([0.0, 0.1, 0.0, *rng.uniform(-1, 1, 2), rng.uniform(-40, 40)])
+        if corner_normal_velocity(s, rx, ry, 0.0, 1.0) >= 0.0:
+            continue
+        target = s.copy()
+        corner_impulse(target, inertia, 0.2, 0.0, math.inf, rx, ry, 0.0, 1.0)
+        capped = s.copy()
+        corner_impulse(capped, inertia, 0.2, 0.0, 0.3, rx, ry, 0.0, 1.0)
+        p_target = target[3] - s[3]
+        p_t, p_n = capped[3] - s[3], capped[4] - s[4]
+        if abs(p_target) > 0.3 * (target[4] - s[4]) * 1.01 and p_n > 0:
+            assert math.copysign(1, p_t) == math.copysign(1, p_target)
+            u_t = s[3] - s[5] * ry
+            seen_against_slip += math.copysign(1, p_target) == math.copysign(1, u_t)
+    assert seen_against_slip > 0  # the case the textbook branch gets wrong did occur
+
+
+def test_flat_landing_while_sliding_slides_to_rest():
+    """A square landing flat while moving sideways slides on its side under friction and is
+    decided there (it once traded pivots between its two bottom corners until the event
+    budget ran out); followed to rest, it slides v^2 / (2 mu g)."""
+    from dice_sweep.physics.kernel import sample_batch
+    from dice_sweep.physics.params import IP_CONTINUE
+
+    mu, vx = 0.5, 0.4
+    # side 2 down, 1e-10 m above the table: the landing itself (one corner, a short sliding
+    # pivot, the other corner) then takes about 1e-4 of vx (one run: 6e-5)
+    y0 = R * math.cos(math.pi / 4) + 1e-10
+    state = np.array([[0.0, y0, math.pi / 4, vx, 0.0, 0.0]])
+    fpar, ipar = make_params(model="rigid", beta_n=0.0, beta_t=0.0, friction=mu, t_max=1.0)
+    outcome, status, _, _ = run_batch((fpar, ipar), state)
+    assert outcome[0] == 2 and status[0] == STATUS_DECIDED
+    ipar = ipar.copy()
+    ipar[IP_CONTINUE] = 1
+    out = np.zeros((1, 6))
+    sample_batch(fpar, ipar, state, np.array([0.9]), np.array([0, 1]), out, np.zeros(1, np.int8))
+    fall = math.sqrt(2 * 1e-10 / G)
+    assert out[0, 0] == pytest.approx(vx * fall + vx**2 / (2 * mu * G), rel=1e-3)
+    assert out[0, 3] == 0.0
