@@ -44,6 +44,7 @@ MIN_UNCERTAIN_PIXELS = 20  # fewer uncertain pixels than this: f(eps) too noisy 
 FIT_MIN_POINTS = 4  # a power-law range holds at least this many perturbations ...
 FIT_MIN_SPAN = 4.0  # ... spanning at least this factor in eps
 FIT_MAX_RESIDUAL = 0.1  # largest |ln f - fit| inside the power-law range (10 % in f)
+F_SATURATED = 0.5  # above this f flattens towards 1 whatever the boundary: left out of fits
 
 # Control maps
 BLUR_MIN_PIXELS = 2.0  # the blur needs sigma at least this many cells wide on a blurred axis
@@ -191,7 +192,7 @@ class PowerLawFit:
     alpha_err : float
         Its uncertainty: the larger of the least-squares standard error and half the
         difference between the slopes of the two halves of the range (a drift of the local
-        slope is a systematic error the standard error does not see).
+        slope is a systematic error the standard error does not see); NaN from 2 points.
     log_prefactor : float
         ln c.
     eps_lo, eps_hi : float
@@ -201,6 +202,9 @@ class PowerLawFit:
     power_law : bool
         False if no range of ``FIT_MIN_POINTS`` points spanning ``FIT_MIN_SPAN`` fits within
         ``FIT_MAX_RESIDUAL``; the fit is then over every usable point and only indicative.
+    saturated : bool
+        True if f > ``F_SATURATED`` at all perturbations but at most one: the map is mixed down to the
+        pixel, and alpha near 0 says only that f no longer falls within the resolved scales.
     """
 
     alpha: float
@@ -210,13 +214,23 @@ class PowerLawFit:
     eps_hi: float
     points: int
     power_law: bool
+    saturated: bool = False
+
+    def text(self) -> str:
+        """``"0.931 ± 0.022"``, or ``"0.551 from 2 points"``, with ``(saturated)`` or
+        ``(no clean power law)`` when the fit is so marked."""
+        error = f"± {self.alpha_err:.3f}" if math.isfinite(self.alpha_err) else f"from {self.points} points"
+        text = f"{self.alpha:.3f} {error}"
+        if self.saturated:
+            return text + " (saturated)"
+        return text if self.power_law else text + " (no clean power law)"
 
 
 def _slope(log_eps, log_f):
-    """(slope, intercept, standard error of the slope) of a least-squares line."""
+    """(slope, intercept, standard error of the slope) of a least-squares line (NaN error for 2 points)."""
     slope, intercept = np.polyfit(log_eps, log_f, 1)
     if len(log_eps) < 3:
-        return slope, intercept, 0.0
+        return slope, intercept, math.nan
     residuals = log_f - (slope * log_eps + intercept)
     spread = np.sum((log_eps - log_eps.mean()) ** 2)
     return slope, intercept, math.sqrt(np.sum(residuals**2) / (len(log_eps) - 2) / spread)
@@ -231,16 +245,19 @@ def _fit_window(log_eps, log_f) -> tuple[float, float, float, float]:
     else:
         drift = 0.0
     worst = float(np.max(np.abs(log_f - (slope * log_eps + intercept))))
-    return float(slope), float(max(stderr, drift)), float(intercept), worst
+    return float(slope), float(max(stderr, drift)) if math.isfinite(stderr) else math.nan, float(intercept), worst
 
 
 def fit_power_law(eps, fraction, uncertain_pixels=None) -> PowerLawFit:
     """Fit f = c eps^alpha on the widest range of eps where a power law holds.
 
-    Candidate ranges are runs of consecutive usable points (f > 0 and, if given, at least
-    ``MIN_UNCERTAIN_PIXELS`` uncertain pixels) of at least ``FIT_MIN_POINTS`` points spanning
-    a factor ``FIT_MIN_SPAN`` in eps. Among those whose largest residual |ln f - fit| is at
-    most ``FIT_MAX_RESIDUAL``, the one with most points wins (ties: smallest residual).
+    Usable points have f > 0, f <= ``F_SATURATED`` (as f nears 1 it flattens whatever the
+    boundary; if fewer than 2 points are that low, the saturated ones are used and the fit is
+    marked ``saturated``) and, if given, at least ``MIN_UNCERTAIN_PIXELS`` uncertain pixels.
+    Candidate ranges are runs of at least ``FIT_MIN_POINTS`` consecutive usable points
+    spanning a factor ``FIT_MIN_SPAN`` in eps. Among those whose largest residual
+    |ln f - fit| is at most ``FIT_MAX_RESIDUAL``, the one with most points wins (ties:
+    smallest residual).
 
     Parameters
     ----------
@@ -260,6 +277,9 @@ def fit_power_law(eps, fraction, uncertain_pixels=None) -> PowerLawFit:
     usable = fraction > 0
     if uncertain_pixels is not None:
         usable &= np.asarray(uncertain_pixels) >= MIN_UNCERTAIN_PIXELS
+    saturated = bool((usable & (fraction <= F_SATURATED)).sum() < 2)
+    if not saturated:
+        usable &= fraction <= F_SATURATED
     log_eps, log_f = np.log(eps[usable]), np.log(fraction[usable])
     if len(log_eps) < 2:
         return PowerLawFit(math.nan, math.nan, math.nan, math.nan, math.nan, 0, False)
@@ -279,7 +299,9 @@ def fit_power_law(eps, fraction, uncertain_pixels=None) -> PowerLawFit:
         _, (alpha, alpha_err, intercept, _), lo, hi = best
         power_law = True
     used_eps = eps[usable]
-    return PowerLawFit(alpha, alpha_err, intercept, float(used_eps[lo]), float(used_eps[hi - 1]), hi - lo, power_law)
+    return PowerLawFit(
+        alpha, alpha_err, intercept, float(used_eps[lo]), float(used_eps[hi - 1]), hi - lo, power_law, saturated
+    )
 
 
 def default_perturbations(shape) -> np.ndarray:
@@ -346,6 +368,7 @@ class UncertaintyCurve:
             "alpha_err": _json_float(fit.alpha_err),
             "boundary_dimension": _json_float(self.dimension),
             "power_law": fit.power_law,
+            "saturated": fit.saturated,
             "fit_eps_pixels": [_json_float(fit.eps_lo), _json_float(fit.eps_hi)],
             "fit_points": fit.points,
         }
@@ -453,7 +476,9 @@ class ChaosMeasures:
         """A few lines for the user."""
         entropy, fit = self.entropy, self.uncertainty.fit
         sides = ", ".join(f"{k}: {v:.3f}" for k, v in self.fractions.items() if k != UNDECIDED)
-        law = "power law" if fit.power_law else "NO clean power law; fit over all points"
+        law = "power law" if fit.power_law else "no clean power law: fit over all usable points"
+        if fit.saturated:
+            law = f"saturated: f > {F_SATURATED:g} already at the smallest eps"
         return "\n".join(
             [
                 f"map {self.shape[0]} x {self.shape[1]}, n = {self.sides}; undecided {self.fractions[UNDECIDED]:.4f}",
@@ -461,8 +486,8 @@ class ChaosMeasures:
                 f"Sb = {entropy.sb:.4f}, Sbb = {entropy.sbb:.4f} nats on {entropy.box_size} x {entropy.box_size} boxes "
                 f"({entropy.boundary_boxes} of {entropy.boxes} on a boundary); "
                 f"Sbb {'>' if entropy.fractal_by_log2 else '<='} ln 2 = {LOG2:.4f}",
-                f"uncertainty exponent alpha = {fit.alpha:.3f} +- {fit.alpha_err:.3f} "
-                f"({law}, eps {fit.eps_lo:g} .. {fit.eps_hi:g} pixels, {fit.points} points); "
+                f"uncertainty exponent alpha = {fit.text()} "
+                f"({law}; eps {fit.eps_lo:g} .. {fit.eps_hi:g} pixels, {fit.points} points); "
                 f"boundary dimension {self.uncertainty.dimension:.3f}",
             ]
         )
@@ -544,6 +569,77 @@ def measure_file(path, box_size=DEFAULT_BOX_SIZE) -> ChaosMeasures:
 def _json_float(value):
     """A float for JSON: NaN becomes None (JSON has no NaN)."""
     return None if value is None or not math.isfinite(value) else float(value)
+
+
+# --- maps with known answers (tests, docs/chaos.md) -------------------------------------
+
+
+def straight_boundary_map(shape, slope, offset) -> np.ndarray:
+    """int8 map: 1 above the line y = slope x + offset (pixel units, through pixel centres), else 0."""
+    rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
+    return (rows + 0.5 > slope * (cols + 0.5) + offset).astype(np.int8)
+
+
+def checkerboard_map(shape, block, shift=0) -> np.ndarray:
+    """int8 checkerboard of ``block`` x ``block`` pixel squares, its edges ``shift`` pixels in."""
+    rows, cols = np.mgrid[0 : shape[0], 0 : shape[1]]
+    return (((rows + block - shift) // block + (cols + block - shift) // block) % 2).astype(np.int8)
+
+
+def cantor_map(levels, rows) -> np.ndarray:
+    """A middle-thirds Cantor boundary times a line: ``rows`` x 3^levels pixels.
+
+    Every interval removed by the construction is a basin of its own, and so is every pixel
+    never removed (a point of the set at this resolution), so the boundary is exactly the
+    Cantor set, of dimension ln 2 / ln 3: alpha = 1 - ln 2 / ln 3 along the columns.
+    """
+    pixel = np.arange(3**levels)
+    basin = 3**levels + pixel
+    removed = np.zeros(pixel.shape, dtype=bool)
+    for stage in range(levels):
+        width = 3 ** (levels - 1 - stage)
+        middle = ((pixel // width) % 3 == 1) & ~removed
+        basin[middle] = (pixel[middle] // width) * width  # first pixel of the removed interval
+        removed |= middle
+    return np.tile(basin, (rows, 1))
+
+
+def weierstrass_map(pixels, a, b, terms=20) -> np.ndarray:
+    """int8 map, 1 above the graph of W(x) = sum_k a^k cos(2 pi b^k x + k), x in [0, 1].
+
+    The graph has box-counting dimension 2 + ln a / ln b, so alpha = -ln a / ln b; the
+    pixels resolve only about log_b(pixels) octaves of W.
+    """
+    x = (np.arange(pixels) + 0.5) / pixels
+    w = sum(a**k * np.cos(2 * np.pi * b**k * x + k) for k in range(terms))
+    y = (np.arange(pixels) + 0.5) / pixels * 4 - 2  # W stays within +-2 for a <= 1/2
+    return (y[:, np.newaxis] > w[np.newaxis, :]).astype(np.int8)
+
+
+def random_map_entropy(box_pixels, outcomes) -> float:
+    """Expected Sb (= Sbb) of a map of independent, equally likely outcomes.
+
+    The exact mean entropy of the shares of ``box_pixels`` uniform draws among ``outcomes``
+    (a sum over the multinomial distribution); it is below ln(outcomes) by about
+    (outcomes - 1) / (2 box_pixels).
+    """
+
+    def compositions(total, parts):
+        if parts == 1:
+            yield (total,)
+            return
+        for first in range(total + 1):
+            for rest in compositions(total - first, parts - 1):
+                yield (first, *rest)
+
+    mean = 0.0
+    for counts in compositions(box_pixels, outcomes):
+        ways = math.factorial(box_pixels)
+        for count in counts:
+            ways //= math.factorial(count)
+        entropy = -sum(c / box_pixels * math.log(c / box_pixels) for c in counts if c)
+        mean += ways * entropy / outcomes**box_pixels
+    return mean
 
 
 # --- control maps -------------------------------------------------------------------------
@@ -921,6 +1017,9 @@ class ControlAgreement:
         standard error floored at 1 / samples).
     same_most_likely : float
         Share of points where both give the same most likely side.
+    median_gap_where_different : float
+        Where they do not: the median gap between the blur's two largest probabilities (a
+        small gap means a near tie that Monte Carlo noise can flip). NaN if they always agree.
     """
 
     points: int
@@ -929,6 +1028,7 @@ class ControlAgreement:
     mean_mc_standard_error: float
     share_within_3_se: float
     same_most_likely: float
+    median_gap_where_different: float
 
     def to_dict(self) -> dict:
         """JSON-ready."""
@@ -958,13 +1058,17 @@ def compare_control(blurred: ControlMap, monte_carlo: ControlMap, x_index, y_ind
     difference = np.abs(p_blur - p_mc)
     standard_error = np.sqrt(p_mc * (1 - p_mc) / monte_carlo.samples)
     floor = np.maximum(standard_error, 1.0 / monte_carlo.samples)
+    different = p_blur.argmax(axis=0) != p_mc.argmax(axis=0)
+    top_two = np.sort(p_blur, axis=0)[-2:]
+    gaps = (top_two[1] - top_two[0])[different]
     return ControlAgreement(
         points=int(inside.sum()),
         mean_abs_difference=float(difference.mean()),
         max_abs_difference=float(difference.max()),
         mean_mc_standard_error=float(standard_error.mean()),
         share_within_3_se=float((difference <= 3 * floor).mean()),
-        same_most_likely=float((p_blur.argmax(axis=0) == p_mc.argmax(axis=0)).mean()),
+        same_most_likely=float(1.0 - different.mean()),
+        median_gap_where_different=float(np.median(gaps)) if gaps.size else math.nan,
     )
 
 
@@ -992,6 +1096,25 @@ def _axis_labels(sweep) -> tuple[str, str]:
     return axis_label(sweep.x.param, sweep.x.unit), axis_label(sweep.y.param, sweep.y.unit)
 
 
+def box_entropy_panel(sweep, entropy: BasinEntropy, title=None) -> dict:
+    """Keyword arguments of :func:`dice_sweep.plotting.draw_scalar_map` for a map of box entropies.
+
+    Parameters
+    ----------
+    sweep : dice_sweep.storage.SweepData
+        The sweep the entropies were measured on (axes, units, sides).
+    entropy : BasinEntropy
+    title : str, optional
+        Default: box size, Sb and Sbb.
+    """
+    rows, cols = entropy.used_shape
+    x_label, y_label = _axis_labels(sweep)
+    extent = (sweep.x.lo, sweep.x.lo + cols * _cell_width(sweep.x), sweep.y.lo, sweep.y.lo + rows * _cell_width(sweep.y))
+    title = title or f"box entropy, {entropy.box_size} x {entropy.box_size} pixels: Sb = {entropy.sb:.3f}, Sbb = {entropy.sbb:.3f}"
+    return dict(values=entropy.box_entropy, x_values=None, y_values=None, x_label=x_label, y_label=y_label,
+                title=title, label="nats", vmin=0.0, vmax=math.log(sweep.sides + 1), cmap="magma", extent=extent)
+
+
 def measure_pictures(sweep, measures: ChaosMeasures, png_dir) -> list[pathlib.Path]:
     """Draw f(eps) with its fit and the map of box entropies into ``png_dir``.
 
@@ -1003,16 +1126,9 @@ def measure_pictures(sweep, measures: ChaosMeasures, png_dir) -> list[pathlib.Pa
     from dice_sweep.plotting import plot_scalar_maps, plot_uncertainty_curves
 
     folder = _png_folder(png_dir)
-    entropy = measures.entropy
-    rows, cols = entropy.used_shape
-    x_label, y_label = _axis_labels(sweep)
-    extent = (sweep.x.lo, sweep.x.lo + cols * _cell_width(sweep.x), sweep.y.lo, sweep.y.lo + rows * _cell_width(sweep.y))
-    title = f"box entropy, {entropy.box_size} x {entropy.box_size} pixels: Sb = {entropy.sb:.3f}, Sbb = {entropy.sbb:.3f}"
-    panel = dict(values=entropy.box_entropy, x_values=None, y_values=None, x_label=x_label, y_label=y_label,
-                 title=title, label="nats", vmin=0.0, vmax=math.log(sweep.sides + 1), cmap="magma", extent=extent)
     return [
         plot_uncertainty_curves([measures.uncertainty], [pathlib.Path(sweep.path).name], folder / "uncertainty.png"),
-        plot_scalar_maps([panel], folder / "box_entropy.png"),
+        plot_scalar_maps([box_entropy_panel(sweep, measures.entropy)], folder / "box_entropy.png"),
     ]
 
 

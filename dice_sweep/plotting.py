@@ -573,8 +573,8 @@ def plot_uncertainty_curves(curves, labels, png_path, *, title=None, dpi=100):
     Parameters
     ----------
     curves : sequence of dice_sweep.chaos.UncertaintyCurve
-        Each has ``eps`` (pixels), ``fraction`` and ``fit`` (``alpha``, ``alpha_err``,
-        ``log_prefactor``, ``eps_lo``, ``eps_hi``, ``power_law``).
+        Each has ``eps`` (pixels), ``fraction`` and ``fit`` (``alpha``, ``log_prefactor``,
+        ``eps_lo``, ``eps_hi`` and ``text()``).
     labels : sequence of str
         Legend entry of each curve.
     png_path : str or pathlib.Path
@@ -590,9 +590,8 @@ def plot_uncertainty_curves(curves, labels, png_path, *, title=None, dpi=100):
     for curve, label, color in zip(curves, labels, _curve_colors(len(curves))):
         shown = curve.fraction > 0
         fit = curve.fit
-        law = "" if fit.power_law else ", no clean power law"
         ax.loglog(curve.eps[shown], curve.fraction[shown], "o", color=color, markersize=4,
-                  label=f"{label}: alpha = {fit.alpha:.2f} +- {fit.alpha_err:.2f}{law}")
+                  label=f"{label}: alpha = {fit.text()}")
         if math.isfinite(fit.alpha):
             eps = np.geomspace(fit.eps_lo, fit.eps_hi, 20)
             ax.loglog(eps, np.exp(fit.log_prefactor) * eps**fit.alpha, "-", color=color, linewidth=1.5)
@@ -689,5 +688,35 @@ def plot_calibration(result, png_path, *, dpi=120, bins=40):
         ax.set_xlabel(name)
         ax.set_ylabel("impacts")
     fig.suptitle(f"{Path(result.path).name}: coefficients per impact", fontsize="medium")
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)
+
+
+def plot_refinement(sweep, refine_level, levels, png_path, *, dpi=100):
+    """A refined sweep's final-state diagram beside the level each pixel's value came from.
+
+    Parameters
+    ----------
+    sweep : dice_sweep.storage.SweepData
+        The refined sweep.
+    refine_level : array_like of int, shape (ny, nx)
+        Level whose roll gave each pixel its value (``/refine_level``, docs/hdf5.md).
+    levels : int
+        The finest level (pixels rolled at their own centre).
+    png_path : str or pathlib.Path
+    dpi : float
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    fig, (ax_outcome, ax_level) = _panel_figure(2, dpi)
+    axes = (sweep.x.values, sweep.y.values, axis_label(sweep.x.param, sweep.x.unit), axis_label(sweep.y.param, sweep.y.unit))
+    ny, nx = sweep.outcome.shape
+    draw_outcome_map(ax_outcome, sweep.outcome, *axes, sweep.sides, title=f"refined sweep, {ny} x {nx}", extent=sweep.extent)
+    simulated = np.mean(np.asarray(refine_level) == levels)
+    draw_scalar_map(ax_level, refine_level, *axes, label="level (0 = coarsest)", vmin=0, vmax=levels, extent=sweep.extent,
+                    title=f"level of each pixel's roll; {100 * simulated:.1f} % rolled at their own centre ({levels})")
     fig.savefig(png_path, dpi=dpi)
     return Path(png_path)

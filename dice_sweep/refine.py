@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import signal
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -32,7 +33,7 @@ from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.physics import COUNT_COLUMNS, STATUS_NAMES
 from dice_sweep.storage import SweepAxis, SweepFile, SweepHeader, rolls_to_maps, write_refinement_maps
-from dice_sweep.sweep import DEFAULT_TILE_SHAPE, SweepJob, TileGrid, default_workers
+from dice_sweep.sweep import DEFAULT_TILE_SHAPE, SweepInterrupted, SweepJob, TileGrid, default_workers
 
 CHUNK_ROLLS = 4096  # rolls per batch handed to a worker (and per progress-bar step)
 MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse grid
@@ -44,6 +45,8 @@ _worker_job: SweepJob | None = None
 
 
 def _init_worker(job: SweepJob) -> None:
+    # Ctrl-C reaches the whole process group; only the parent handles it (as in sweep.py)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     global _worker_job
     _worker_job = job
 
@@ -91,10 +94,14 @@ def _rolled_chunks(job: SweepJob, chunks, workers: int):
         yield from map(job.roll, chunks)
         return
     job.warm_up()  # compile before forking, so that every worker inherits the kernel
-    with ProcessPoolExecutor(
+    executor = ProcessPoolExecutor(
         min(workers, len(chunks)), mp_context=_fork_context(), initializer=_init_worker, initargs=(job,)
-    ) as executor:
+    )
+    try:
         yield from executor.map(_roll_in_worker, chunks)
+    finally:
+        # on Ctrl-C or an error, drop the chunks not started rather than roll them all first
+        executor.shutdown(wait=True, cancel_futures=True)
 
 
 def _fork_context():
@@ -345,6 +352,8 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
     ------
     DiceSweepError
         If the output exists, its folder does not, or the grid cannot be halved ``levels`` times.
+    dice_sweep.sweep.SweepInterrupted
+        On Ctrl-C (the CLI exits with 130); no file is written.
     """
     started = time.perf_counter()
     check_levels(cfg, levels)
@@ -356,9 +365,14 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
     folder = os.path.dirname(os.path.abspath(out_path))
     if not os.path.isdir(folder):
         raise DiceSweepError(f"{out_path}: folder {folder} does not exist")
-    with tqdm(unit=" rolls", unit_scale=True, desc=os.path.basename(str(out_path)), file=sys.stderr,
-              disable=not (progress and sys.stderr.isatty())) as bar:
-        refined = refine_maps(cfg, levels, workers=workers, on_chunk=bar.update)
+    try:
+        with tqdm(unit=" rolls", unit_scale=True, desc=os.path.basename(str(out_path)), file=sys.stderr,
+                  disable=not (progress and sys.stderr.isatty())) as bar:
+            refined = refine_maps(cfg, levels, workers=workers, on_chunk=bar.update)
+    except KeyboardInterrupt:
+        raise SweepInterrupted(
+            f"{out_path}: interrupted; a refined sweep is written only at its end, so nothing was written"
+        ) from None
     write_refined(out_path, cfg, refined)
     return RefineSummary(
         str(out_path), refined.refine_level.shape, levels, refined.rolls, int(refined.simulated.sum()),

@@ -8,7 +8,6 @@ boundary (alpha = 1 - ln 2 / ln 3) and a Weierstrass graph (alpha = -ln a / ln b
 
 import json
 import math
-from math import factorial
 
 import numpy as np
 import pytest
@@ -19,6 +18,8 @@ from dice_sweep.chaos import (
     SMOOTH_BOUNDARY_SBB,
     basin_entropy,
     blur_probabilities,
+    cantor_map,
+    checkerboard_map,
     choose_method,
     compare_control,
     control_map,
@@ -27,8 +28,11 @@ from dice_sweep.chaos import (
     monte_carlo_indices,
     outcome_fractions,
     parse_sigma,
+    random_map_entropy,
     scattered_starts,
+    straight_boundary_map,
     uncertainty_curve,
+    weierstrass_map,
 )
 from dice_sweep.cli import main
 from dice_sweep.config import load_config, parse_config
@@ -42,10 +46,6 @@ def binary_entropy(p):
     return -(p * math.log(p) + (1 - p) * math.log(1 - p))
 
 
-def pixel_grid(rows, cols):
-    return np.mgrid[0:rows, 0:cols]
-
-
 # --- outcome fractions and basin entropy --------------------------------------------------
 
 
@@ -55,8 +55,7 @@ def test_fractions_count_every_side_and_the_undecided():
 
 
 def test_straight_horizontal_boundary_has_the_entropy_of_its_split():
-    rows, _ = pixel_grid(500, 500)
-    outcome = (rows >= 252).astype(np.int8)  # boxes of rows 250-254 hold 2 rows of 0, 3 of 1
+    outcome = straight_boundary_map((500, 500), 0.0, 252)  # boxes of rows 250-254: 2 rows of 0, 3 of 1
     entropy = basin_entropy(outcome, 5)
     assert entropy.boundary_boxes == 100
     assert entropy.sbb == pytest.approx(binary_entropy(0.4), rel=1e-12)
@@ -66,17 +65,14 @@ def test_straight_horizontal_boundary_has_the_entropy_of_its_split():
 
 @pytest.mark.parametrize("slope", [0.1, (math.sqrt(5) - 1) / 2])
 def test_tilted_straight_boundary_has_the_smooth_boundary_entropy(slope):
-    rows, cols = pixel_grid(500, 500)
-    outcome = (rows + 0.5 > slope * (cols + 0.5) + 100.3).astype(np.int8)
-    entropy = basin_entropy(outcome, 5)
+    entropy = basin_entropy(straight_boundary_map((500, 500), slope, 100.3), 5)
     # the share of one basin in a box the line crosses is about uniform: mean entropy 1/2
     assert entropy.sbb == pytest.approx(SMOOTH_BOUNDARY_SBB, abs=0.06)
     assert entropy.sbb < LOG2
 
 
 def test_pixel_checkerboard_splits_every_box_13_to_12():
-    rows, cols = pixel_grid(100, 100)
-    entropy = basin_entropy((rows + cols) % 2, 5)
+    entropy = basin_entropy(checkerboard_map((100, 100), 1), 5)
     assert entropy.sb == entropy.sbb == pytest.approx(binary_entropy(12 / 25), rel=1e-12)
     assert entropy.boundary_boxes == entropy.boxes
     assert entropy.sbb < LOG2  # two basins never pass the ln 2 criterion
@@ -85,41 +81,21 @@ def test_pixel_checkerboard_splits_every_box_13_to_12():
 def test_block_checkerboard_box_entropies_are_exact():
     # blocks of 10 pixels with edges at columns (and rows) 7, 17, ...: per 2 x 2 boxes one box
     # holds a corner (13 : 12), two hold one edge (2 : 3 columns or rows), one holds none
-    rows, cols = pixel_grid(500, 500)
-    entropy = basin_entropy(((rows + 3) // 10 + (cols + 3) // 10) % 2, 5)
+    entropy = basin_entropy(checkerboard_map((500, 500), 10, shift=7), 5)
     corner, edge = binary_entropy(12 / 25), binary_entropy(0.4)
     assert entropy.sb == pytest.approx((corner + 2 * edge) / 4, rel=1e-12)
     assert entropy.sbb == pytest.approx((corner + 2 * edge) / 3, rel=1e-12)
 
 
-def multinomial_mean_entropy(draws, outcomes):
-    """Exact expected entropy of the shares of ``draws`` uniform draws among ``outcomes``."""
-
-    def compositions(total, parts):
-        if parts == 1:
-            yield (total,)
-            return
-        for first in range(total + 1):
-            for rest in compositions(total - first, parts - 1):
-                yield (first, *rest)
-
-    mean = 0.0
-    for counts in compositions(draws, outcomes):
-        ways = factorial(draws)
-        for count in counts:
-            ways //= factorial(count)
-        mean += ways * -sum(c / draws * math.log(c / draws) for c in counts if c) / outcomes**draws
-    return mean
-
-
 def test_random_map_has_the_multinomial_entropy_and_no_power_law_scale():
     outcome = np.random.default_rng(1).integers(0, 4, (400, 400))
     entropy = basin_entropy(outcome, 5)
-    assert entropy.sb == pytest.approx(multinomial_mean_entropy(25, 4), abs=0.01)
+    assert entropy.sb == pytest.approx(random_map_entropy(25, 4), abs=0.01)
     assert entropy.fractal_by_log2
     curve = uncertainty_curve(outcome)
     assert curve.fraction == pytest.approx(1 - 4.0**-4, abs=0.01)  # a neighbour differs
     assert curve.fit.alpha == pytest.approx(0.0, abs=0.01)
+    assert curve.fit.saturated
 
 
 def test_grid_not_divisible_by_the_box_leaves_out_the_top_rows_and_right_columns():
@@ -140,38 +116,21 @@ def test_box_larger_than_the_map_is_refused():
 
 
 def test_straight_boundary_has_alpha_one():
-    rows, cols = pixel_grid(500, 500)
-    for outcome in ((rows >= 252), (rows + 0.5 > 0.3 * (cols + 0.5) + 180.3)):
-        fit = uncertainty_curve(outcome.astype(np.int8)).fit
+    for slope, offset in ((0.0, 252), (0.3, 180.3)):
+        fit = uncertainty_curve(straight_boundary_map((500, 500), slope, offset)).fit
         assert fit.power_law
         assert fit.alpha == pytest.approx(1.0, abs=0.01)
 
 
 def test_block_checkerboard_has_alpha_one_below_the_block_size():
-    rows, cols = pixel_grid(1024, 1024)
-    fit = uncertainty_curve((rows // 128 + cols // 128) % 2, eps=[1, 2, 3, 4, 6, 8]).fit
+    fit = uncertainty_curve(checkerboard_map((1024, 1024), 128), eps=[1, 2, 3, 4, 6, 8]).fit
     assert fit.alpha == pytest.approx(1.0, abs=0.05)
-
-
-def cantor_basins(levels):
-    """Basin of each of 3^levels pixels: every interval removed by the middle-thirds
-    construction is a basin of its own (so the boundary is exactly the Cantor set), and so is
-    every pixel never removed (a point of the set at this resolution)."""
-    pixel = np.arange(3**levels)
-    basin = 3**levels + pixel
-    removed = np.zeros(pixel.shape, dtype=bool)
-    for stage in range(levels):
-        width = 3 ** (levels - 1 - stage)
-        middle = ((pixel // width) % 3 == 1) & ~removed
-        basin[middle] = (pixel[middle] // width) * width  # first pixel of the removed interval
-        removed |= middle
-    return basin
 
 
 def test_cantor_boundary_has_alpha_one_minus_its_dimension():
     # boundary: a middle-thirds Cantor set (dimension ln 2 / ln 3) times a line; perturbations
     # of 3^k pixels sample f(eps) at one phase of its log-periodic wobble
-    outcome = np.tile(cantor_basins(8), (3**5, 1))
+    outcome = cantor_map(8, 3**5)
     fit = uncertainty_curve(outcome, eps=3 ** np.arange(5)).fit
     assert fit.power_law and fit.points == 5
     assert fit.alpha == pytest.approx(1 - math.log(2) / math.log(3), abs=0.015)
@@ -179,11 +138,8 @@ def test_cantor_boundary_has_alpha_one_minus_its_dimension():
 
 def test_weierstrass_graph_boundary_has_alpha_two_minus_its_dimension():
     # the graph of W(x) = sum a^k cos(2 pi b^k x + k) has dimension 2 + ln a / ln b
-    a, b, pixels = 0.5, 4.0, 1024
-    x = (np.arange(pixels) + 0.5) / pixels
-    w = sum(a**k * np.cos(2 * np.pi * b**k * x + k) for k in range(20))
-    y = (np.arange(pixels) + 0.5) / pixels * 4 - 2
-    fit = uncertainty_curve((y[:, np.newaxis] > w[np.newaxis, :]).astype(np.int8)).fit
+    a, b = 0.5, 4.0
+    fit = uncertainty_curve(weierstrass_map(1024, a, b)).fit
     # the pixel grid samples only 5 octaves of W: the fit is good to about 0.05
     assert fit.alpha == pytest.approx(-math.log(a) / math.log(b), abs=0.06)
 
@@ -195,6 +151,15 @@ def test_fit_finds_the_power_law_range_before_saturation():
     assert fit.power_law
     assert fit.alpha == pytest.approx(1.0, abs=1e-9)
     assert fit.eps_lo == 1 and fit.eps_hi == 16
+
+
+def test_fit_leaves_out_the_saturated_part_of_the_curve():
+    eps = np.unique(np.round(np.logspace(0, np.log10(64), 16)))
+    fraction = 1 - np.exp(-0.1 * eps)  # ~ 0.1 eps while small, flattening towards 1
+    fit = fit_power_law(eps, fraction)
+    assert fit.eps_hi <= 10 * math.log(2)  # where f reaches 1/2
+    assert not fit.saturated
+    assert fit.alpha > 0.8
 
 
 def test_fit_without_a_power_law_says_so():
