@@ -37,11 +37,21 @@ would measure that chaos rather than the contact physics.
 """
 
 
+def write_markdown(report):
+    """docs/measured.md: the introduction, the generated report, the notes."""
+    text = INTRO + markdown_report(report).split("\n", 1)[1]
+    (ROOT / "docs" / "measured.md").write_text(text + "\n" + (ROOT / "docs" / "measured_notes.md").read_text())
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(DEFAULT_DATA))
     parser.add_argument("--config", default=str(ROOT / "configs" / "square_drops.toml"))
+    parser.add_argument("--from-report", metavar="REPORT.json", help="rewrite docs/measured.md from an existing report")
     args = parser.parse_args()
+    if args.from_report:
+        write_markdown(json.loads(Path(args.from_report).read_text()))
+        return 0
     if not Path(args.data).exists():
         print(f"skipped: {args.data} not found (the shared data is not beside this checkout)")
         return 0
@@ -51,8 +61,7 @@ def main():
                           log=lambda line: print(line, file=sys.stderr))
     figure = ROOT / "docs" / "figures" / "measured_residual.png"
     figure.write_bytes((out / "residual_error_vs_time.png").read_bytes())
-    text = INTRO + markdown_report(report).split("\n", 1)[1]
-    (ROOT / "docs" / "measured.md").write_text(text + "\n" + (ROOT / "docs" / "measured_notes.md").read_text())
+    write_markdown(report)
     print(json.dumps({"baseline": report["baseline"]["test_error"], "after": report["after"]["test_error"],
                       "effects": report["after"]["effects"]}))
     return 0
