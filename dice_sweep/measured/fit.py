@@ -42,6 +42,7 @@ EFFECTS = tuple(EFFECT_PARAMS)
 BASE_PARAMS = ("beta_normal", "beta_tangential")
 HORIZON_AFTER_IMPACT = 0.06  # s
 IMPACT_WINDOW = 0.01  # m: a minimum of the lowest corner's height below this is an impact
+IMPACT_DV = 0.5  # m/s: a jump of the vertical velocity between frames larger than this is one
 MIN_FREE_FRAMES = 4
 ROBUST_SCALE = 0.003  # m: soft-L1 loss scale, about where tracking glitches begin to dominate
 
@@ -143,6 +144,26 @@ def lowest_corner_height(sides, radius, y, phi):
     return np.asarray(y) + radius * np.sin(angles).min(axis=-1)
 
 
+def first_impact_frame(t, pose, sides, radius):
+    """Index of the first frame that may already follow the first impact (-1: none found).
+
+    Two signs, the earlier wins: the first local minimum of the lowest corner's height below
+    IMPACT_WINDOW (at 250 Hz the contact falls between frames, so no frame need come close to
+    0), and the first jump of the vertical velocity between frames by more than IMPACT_DV (an
+    impact changes it by metres per second, gravity by g dt). The second catches bounces whose
+    lowest frame stays high; without it some tracks fitted a bounce as free flight
+    (docs/figures/measured_residual.png showed their errors before the "first" impact).
+    """
+    low = lowest_corner_height(sides, radius, pose[:, 1], pose[:, 2])
+    turning = np.flatnonzero((low[:-1] < IMPACT_WINDOW) & (low[1:] >= low[:-1]))
+    first = turning[0] if turning.size else len(t)
+    vy = np.diff(pose[:, 1]) / np.diff(t)
+    jumps = np.flatnonzero(np.diff(vy) > IMPACT_DV) + 1  # vy[k] - vy[k-1]: interval k
+    if jumps.size:
+        first = min(first, jumps[0])
+    return first if first < len(t) else -1
+
+
 @dataclass(frozen=True)
 class PreparedTrack:
     """One track reduced to what the fit needs (times from the track's first frame)."""
@@ -167,13 +188,9 @@ def prepare_tracks(trackset, cfg, horizon_after_impact=HORIZON_AFTER_IMPACT):
             continue
         t = track.t[ok] - track.t[0]
         pose = np.column_stack([track.x[ok], track.y[ok], track.phi[ok]])
-        low = lowest_corner_height(sides, radius, pose[:, 1], pose[:, 2])
-        # first impact: the first local minimum of the lowest corner's height near the table
-        # (at 250 Hz the contact falls between frames, so no frame need come close to 0)
-        turning = np.flatnonzero((low[:-1] < IMPACT_WINDOW) & (low[1:] >= low[:-1]))
-        if turning.size == 0 or turning[0] < MIN_FREE_FRAMES:
+        first = first_impact_frame(t, pose, sides, radius)
+        if first < MIN_FREE_FRAMES:
             continue
-        first = turning[0]
         t_impact = t[first]
         keep = t <= t_impact + horizon_after_impact
         free = np.arange(t.size) < first  # frames before the minimum are surely before contact
