@@ -44,6 +44,8 @@ HORIZON_AFTER_IMPACT = 0.06  # s
 IMPACT_WINDOW = 0.01  # m: a minimum of the lowest corner's height below this is an impact
 IMPACT_DV = 0.5  # m/s: a jump of the vertical velocity between frames larger than this is one
 MIN_FREE_FRAMES = 4
+SPEED_RESTITUTION_START = 0.5  # s/m
+TYPICAL_IMPACT_SPEED = 2.0  # m/s, of drops like the shared data's (about 0.15 m high)
 ROBUST_SCALE = 0.003  # m: soft-L1 loss scale, about where tracking glitches begin to dominate
 
 
@@ -277,6 +279,11 @@ def fit_spec(cfg, spec, prepared_train, start=None):
     initial = start_values(cfg, spec)
     if start:
         initial.update({k: v for k, v in start.items() if k in initial})
+        if "speed_restitution" in names and "speed_restitution" not in start:
+            # keep the effective restitution at a typical impact speed where it was, so the
+            # new parameter starts where it can move (a start at k = 0.1 stayed there)
+            initial["speed_restitution"] = SPEED_RESTITUTION_START
+            initial["beta_normal"] = min(start["beta_normal"] * (1.0 + SPEED_RESTITUTION_START * TYPICAL_IMPACT_SPEED), 1.0)
     bounds = np.array([param_bounds(cfg, name) for name in names]).T
     x0 = np.clip([initial[name] for name in names], bounds[0] + 1e-9, bounds[1] - 1e-9)
     model = TrackModel(cfg, spec, prepared_train)
