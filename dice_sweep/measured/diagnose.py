@@ -19,7 +19,9 @@ from dice_sweep.measured.fit import (
     TrackModel,
     declared_effects,
     fit_spec,
+    gravity_of,
     held_out_error,
+    model_config,
     prepare_tracks,
 )
 
@@ -47,6 +49,7 @@ def residual_signatures(cfg, fit, prepared):
     """
     model = TrackModel(cfg, fit.spec, prepared)
     poses, _, states = model.simulate(fit.params)
+    g = gravity_of(model_config(cfg, fit.spec, fit.params))
     diff = model.measured - poses
     curvature_y, curvature_x, wobble, impact_dv, impact_speed, lever = [], [], [], [], [], []
     for i, track in enumerate(prepared):
@@ -65,7 +68,7 @@ def residual_signatures(cfg, fit, prepared):
         after = (t > track.t_impact) & (t <= track.t_impact + 0.03)
         if after.sum() >= 3:
             impact_dv.append(_polyfit_coefficient(t[after], d[after, 1], 1, 1))
-            impact_speed.append(abs(states[i, 4] - 9.81 * track.t_impact))
+            impact_speed.append(abs(states[i, 4] - g * track.t_impact))
             lowest = np.argmin(np.sin(track.pose[free, 2][-1] + 2 * np.pi * np.arange(cfg.die.sides) / cfg.die.sides))
             lever.append(abs(math.cos(track.pose[free, 2][-1] + 2 * np.pi * lowest / cfg.die.sides)))
     signatures = []
