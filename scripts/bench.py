@@ -1,0 +1,117 @@
+"""Side-by-side speed of the kernels, a physics engine and the CLI (issue 7's benchmark).
+
+On the same initial conditions (the fig08 grid of the Table I die):
+1. the event kernel, paper and rigid models, one process;
+2. the fixed_step kernel at the paper's dt = 1e-3 s;
+3. pymunk (Chipmunk2D) with the same die, Newton restitution and Coulomb friction, stepped at
+   1e-4 s and stopped by the same energy rule (rolls per CPU second, one core);
+4. the CLI sweep of configs/fig08.toml at 1 and 2 workers, and `dice-sweep roll` with an empty
+   numba cache (cold) and again (warm).
+Prints a Markdown table; ``--write`` puts it into docs/performance.md. Public API only.
+
+    python scripts/bench.py [--num 128] [--sweep-num 1024] [--pymunk-rolls 200] [--write]
+"""
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dice_sweep.config import load_config
+from dice_sweep.physics import COUNT_COLUMNS, pack_params, roll_batch
+from dice_sweep.sweep import axis_values, initial_states
+
+ROOT = Path(__file__).resolve().parent.parent
+CLI = [sys.executable, "-m", "dice_sweep"]
+
+
+def kernel_rate(cfg, states, repeat=3):
+    """(rolls/s, impacts per roll) of roll_batch in this process, best of ``repeat``."""
+    fpar, ipar = pack_params(cfg)
+    n = states.shape[0]
+    outcome = np.empty(n, np.int8)
+    status = np.empty(n, np.uint8)
+    counts = np.empty((n, len(COUNT_COLUMNS)), np.int32)
+    t_decided = np.empty(n)
+    roll_batch(fpar, ipar, states[:2], outcome[:2], status[:2], counts[:2], t_decided[:2])  # compile/load
+    best = float("inf")
+    for _ in range(repeat):
+        start = time.perf_counter()
+        roll_batch(fpar, ipar, states, outcome, status, counts, t_decided)
+        best = min(best, time.perf_counter() - start)
+    return n / best, counts[:, 0].mean()
+
+
+def pymunk_rate(cfg, states, rolls, seed=0):
+    """Rolls per CPU second of the pymunk reference die on a random subset of ``states``."""
+    from dice_sweep.reference.pymunk_die import pymunk_outcomes
+
+    chosen = states[np.random.default_rng(seed).choice(states.shape[0], size=min(rolls, states.shape[0]), replace=False)]
+    start = time.process_time()
+    pymunk_outcomes(cfg, chosen)
+    return chosen.shape[0] / (time.process_time() - start)
+
+
+def timed(command, env=None):
+    start = time.perf_counter()
+    subprocess.run(command, check=True, capture_output=True, env=env)
+    return time.perf_counter() - start
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--num", type=int, default=128, help="cells per axis of the kernel grid")
+    parser.add_argument("--sweep-num", type=int, default=1024, help="cells per axis of the CLI sweep")
+    parser.add_argument("--pymunk-rolls", type=int, default=200)
+    parser.add_argument("--write", action="store_true", help="write docs/performance.md")
+    args = parser.parse_args()
+    fig08 = ROOT / "configs" / "fig08.toml"
+    cfg = load_config(fig08, [f"grid.x.num={args.num}", f"grid.y.num={args.num}"])
+    states = initial_states(cfg, axis_values(cfg.grid.x), axis_values(cfg.grid.y))
+    rigid = load_config(fig08, [f"grid.x.num={args.num}", f"grid.y.num={args.num}", "contact.model=rigid",
+                                "contact.beta_tangential=0.0", "contact.friction=0.5"])
+    rows = []
+    paper_rate, paper_impacts = kernel_rate(cfg, states)
+    rows.append(("event kernel, paper law", paper_rate, paper_impacts))
+    rigid_rate, rigid_impacts = kernel_rate(rigid, states)
+    rows.append(("event kernel, rigid law, mu = 0.5, beta_t = 0", rigid_rate, rigid_impacts))
+    fixed = load_config(fig08, [f"grid.x.num={args.num}", f"grid.y.num={args.num}", "integrator.method=fixed_step"])
+    fixed_rate, fixed_impacts = kernel_rate(fixed, states, repeat=1)
+    rows.append(("fixed_step kernel, paper law, dt = 1e-3 s", fixed_rate, fixed_impacts))
+    munk = pymunk_rate(rigid, states, args.pymunk_rolls)
+    lines = [f"Grid: fig08's ranges at {args.num} x {args.num} = {states.shape[0]} rolls (pymunk: "
+             f"{min(args.pymunk_rolls, states.shape[0])} of them), Table I die. One process.", "",
+             "| simulator | rolls/s (one core) | impacts per roll | ns per impact |", "|---|---|---|---|"]
+    for name, rate, impacts in rows:
+        lines.append(f"| {name} | {rate:,.0f} | {impacts:.2f} | {1e9 / (rate * impacts):,.0f} |")
+    lines.append(f"| pymunk (Chipmunk2D), rigid law as above, dt = 1e-4 s (per CPU second) | {munk:,.1f} | - | - |")
+    lines += ["", f"Event kernel (rigid) / pymunk, same physics, per core: **{rigid_rate / munk:,.0f} x**.", ""]
+    with tempfile.TemporaryDirectory() as tmp:
+        sweep_times = {}
+        for workers in (1, 2):
+            out = Path(tmp) / f"w{workers}.h5"
+            sweep_times[workers] = timed(CLI + ["sweep", str(fig08), "-o", str(out), "--workers", str(workers), "--quiet",
+                                                "--set", f"grid.x.num={args.sweep_num}", "--set", f"grid.y.num={args.sweep_num}"])
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "numba-cache"))
+        cold = timed(CLI + ["roll", str(ROOT / "configs" / "table1.toml")], env=env)
+        warm = min(timed(CLI + ["roll", str(ROOT / "configs" / "table1.toml")], env=env) for _ in range(3))
+    lines += [f"| command | wall time (s) |", "|---|---|",
+              f"| `dice-sweep sweep configs/fig08.toml` at {args.sweep_num} x {args.sweep_num}, 1 worker | {sweep_times[1]:.2f} |",
+              f"| same, 2 workers | {sweep_times[2]:.2f} (speed-up {sweep_times[1] / sweep_times[2]:.2f}) |",
+              f"| `dice-sweep roll configs/table1.toml`, empty numba cache (cold) | {cold:.2f} |",
+              f"| same, cache filled (warm, best of 3) | {warm:.2f} |"]
+    table = "\n".join(lines)
+    print(table)
+    if args.write:
+        head = (ROOT / "docs" / "performance_intro.md").read_text()
+        (ROOT / "docs" / "performance.md").write_text(head + "\n" + table + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
