@@ -5,7 +5,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dice_sweep.physics import COUNT_COLUMNS, STATUS_NAMES, pack_params
-from dice_sweep.physics.kernel import REC_T, REC_WIDTH, roll_one, sample_records
+from dice_sweep.physics.kernel import REC_WIDTH, roll_one, sample_records
 
 MAX_RECORDS = 100_000
 
@@ -93,9 +93,3 @@ def sample_path(cfg, report, times):
     rec = report.records
     sample_records(fpar, ipar, rec, rec.shape[0], t, out)
     return out
-
-
-def impact_times(report):
-    """Times (s) at which a segment starts with an impact (for pictures)."""
-    rec = report.records
-    return rec[1:, REC_T].copy()

@@ -102,7 +102,7 @@ def _rk4_drag(s, h, g, c, out):
 
 
 @numba.njit(cache=True)
-def drag_step(s, h, g, c, tol, out, work):
+def drag_step(s, h, g, c, out, work):
     """Step of length h with error control by step doubling; returns the error estimate (m).
 
     ``out`` gets the two-half-steps result improved by Richardson extrapolation.
@@ -131,7 +131,7 @@ def advance_flight(s0, tau, fpar, out):
     tol = DRAG_TOL * fpar[FP_RHO_MAX]
     while done < tau:
         h = min(h, tau - done)
-        if drag_step(cur, h, g, c, tol, out, work) > tol and h > 1e-9:
+        if drag_step(cur, h, g, c, out, work) > tol and h > 1e-9:
             h *= 0.5
             continue
         cur[:] = out
@@ -264,7 +264,7 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
         h = min(step, h_ode)
         if tau + h > tau_max:
             return NO_CONTACT
-        if drag_step(out, h, g, c, ode_tol, trial, work) > ode_tol and h > 1e-9:
+        if drag_step(out, h, g, c, trial, work) > ode_tol and h > 1e-9:
             h_ode = 0.5 * h
             continue
         out[:] = trial
