@@ -64,3 +64,28 @@ def synthetic_tracks(cfg, count, seed, *, rate=250.0, duration=0.3, noise=(1e-4,
         pose = out[starts[i]:starts[i + 1], :3] + rng.normal(0.0, 1.0, (t.size, 3)) * [noise[0], noise[0], noise[1]]
         tracks.append(Track(i + 1, t.copy(), pose[:, 0], pose[:, 1], pose[:, 2] + angle_shift, np.zeros(t.size, bool)))
     return TrackSet("<synthetic>", tuple(tracks), rate, 1, 0.0, "synthetic: model convention", 0, 0)
+
+
+def pymunk_tracks(cfg, count, seed, *, rate=250.0, duration=0.3, noise=(1e-4, 0.003), dt=1e-4):
+    """Like :func:`synthetic_tracks`, but simulated by pymunk (Chipmunk2D), an engine that
+    shares no code with the kernel: Newton restitution at the corner and Coulomb friction
+    (``cfg``'s beta_normal and friction; pymunk has no tangential restitution)."""
+    from dice_sweep.reference.pymunk_die import PymunkDie
+
+    rng = np.random.default_rng(seed)
+    frames = int(duration * rate)
+    steps_per_frame = int(round(1.0 / (rate * dt)))
+    t = np.arange(frames) / rate
+    tracks = []
+    for i in range(count):
+        state = (rng.uniform(-0.05, 0.05), rng.uniform(0.12, 0.17), rng.uniform(-np.pi, np.pi),
+                 rng.uniform(-0.8, -0.4), rng.uniform(-2.1, -1.7), rng.uniform(-8.0, 8.0))
+        die = PymunkDie.from_config(cfg, state, dt=dt)
+        pose = np.zeros((frames, 3))
+        for k in range(frames):
+            pose[k] = die.state()[:3]
+            for _ in range(steps_per_frame):
+                die.step()
+        pose += rng.normal(0.0, 1.0, pose.shape) * [noise[0], noise[0], noise[1]]
+        tracks.append(Track(i + 1, t.copy(), pose[:, 0], pose[:, 1], pose[:, 2], np.zeros(frames, bool)))
+    return TrackSet("<pymunk>", tuple(tracks), rate, 1, 0.0, "synthetic: model convention", 0, 0)
