@@ -269,13 +269,11 @@ def plot_comparison(h5_paths, png_path, *, titles=None, dpi=100):
     from dice_sweep.storage import read_sweep
 
     sweeps = [read_sweep(path) for path in h5_paths]
-    width, height = OUTCOME_FIGSIZE
-    fig = Figure(figsize=(width * len(sweeps), height), dpi=dpi, layout="constrained")
-    FigureCanvasAgg(fig)
-    for i, sweep in enumerate(sweeps):
+    fig, axes = _panel_figure(len(sweeps), dpi, OUTCOME_FIGSIZE)
+    for i, (ax, sweep) in enumerate(zip(axes, sweeps)):
         title = titles[i] if titles else outcome_title(parse_config(sweep.config_toml), sweep.complete)
         draw_outcome_map(
-            fig.add_subplot(1, len(sweeps), i + 1),
+            ax,
             sweep.outcome,
             sweep.x.values,
             sweep.y.values,
@@ -496,9 +494,10 @@ def animate_roll(cfg, report, gif_path, *, fps=30, max_frames=MAX_ANIMATION_FRAM
 PANEL_FIGSIZE = (6, 5)  # inches per panel of a row of maps
 
 
-def _panel_figure(panels, dpi):
-    """A Figure with one axes per panel in a row, and the list of axes."""
-    width, height = PANEL_FIGSIZE
+def _panel_figure(panels, dpi, panel_size=None):
+    """A Figure with one axes per panel in a row (each ``panel_size`` inches, default
+    PANEL_FIGSIZE), and the list of axes."""
+    width, height = panel_size or PANEL_FIGSIZE
     fig = Figure(figsize=(width * panels, height), dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
     return fig, [fig.add_subplot(1, panels, i + 1) for i in range(panels)]
