@@ -125,11 +125,15 @@ def _describe_roll(report):
 @_set_option
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary line.")
 @click.option("--refine", "refine_levels", type=int, metavar="LEVELS", help="Sweep 2^LEVELS times coarser, then refine only where neighbours disagree (docs/chaos.md).")
-def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, refine_levels=None):
+@click.option("--executor", default="local", show_default=True, metavar="local|dask", help="Where tiles are computed: forked local workers, or tasks on a dask.distributed cluster (pip install 'dice-sweep[dask]').")
+@click.option("--scheduler", metavar="ADDRESS", help="With --executor dask: the scheduler, e.g. tcp://10.0.0.5:8786 [default: start a local cluster of --workers processes].")
+def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, refine_levels=None, executor="local", scheduler=None):
     """Roll the die over the [grid] of CONFIG and write the outcome maps to OUT.h5.
 
     With --refine LEVELS the grid is computed as a quadtree: OUT.h5 has the same maps at the
     full resolution plus /simulated, the pixels rolled at their own centre (docs/hdf5.md).
+    With --executor dask the tiles run on a dask cluster and this process writes OUT.h5 as
+    they arrive; --shard and --resume work the same (docs/scaling.md).
 
     \b
     Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
@@ -142,11 +146,12 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     if refine_levels is not None:
         from dice_sweep.refine import run_refined_sweep
 
-        if resume or shard != (0, 1):
-            raise DiceSweepError("--refine: cannot be combined with --shard or --resume (a refined sweep is written whole, at the end)")
+        if resume or shard != (0, 1) or executor != "local":
+            raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")
         summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=not quiet)
     else:
-        summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=not quiet)
+        summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=not quiet,
+                            executor=executor, scheduler=scheduler)
     if not quiet:
         click.echo(summary.describe())
     if png_path:

@@ -360,6 +360,14 @@ def _tile_results(job: SweepJob, todo: Sequence[int], workers: int, stop: _StopR
     executor.shutdown()
 
 
+def _executor_results(executor: str, scheduler: str | None, job: SweepJob, todo, workers, stop):
+    if executor == "dask" and todo:
+        from dice_sweep.distributed import dask_tile_results
+
+        return dask_tile_results(job, todo, stop, scheduler=scheduler, workers=workers)
+    return _tile_results(job, todo, workers, stop)
+
+
 def _completed(pending: set, stop: _StopRequest) -> Iterator:
     # Drop each future as it is consumed so that finished tiles are not all kept in memory.
     while pending and not stop.requested:
@@ -419,6 +427,25 @@ def default_workers() -> int:
     if hasattr(os, "sched_getaffinity"):
         return len(os.sched_getaffinity(0))
     return os.cpu_count() or 1
+
+
+EXECUTORS = ("local", "dask")
+
+
+def _check_executor(executor: str, scheduler: str | None, workers: int | None) -> int | None:
+    """The worker count to use (None: the dask scheduler's workers), or a one-line error."""
+    if executor not in EXECUTORS:
+        raise DiceSweepError(f"--executor {executor!r}: allowed values are {', '.join(EXECUTORS)}")
+    if scheduler is not None and executor != "dask":
+        raise DiceSweepError("--scheduler: only with --executor dask")
+    if scheduler is not None and workers is not None:
+        raise DiceSweepError("--workers: not with --scheduler (the dask cluster has its own workers)")
+    if scheduler is not None:
+        return None
+    workers = default_workers() if workers is None else int(workers)
+    if workers < 1:
+        raise DiceSweepError(f"--workers {workers}: need at least 1")
+    return workers
 
 
 def _sweep_axis(axis, values) -> SweepAxis:
@@ -482,6 +509,8 @@ def run_sweep(
     progress: bool = True,
     tile_shape: tuple[int, int] = DEFAULT_TILE_SHAPE,
     on_tile: Callable[[int, int], None] | None = None,
+    executor: str = "local",
+    scheduler: str | None = None,
 ) -> SweepSummary:
     """Roll every cell of ``cfg.grid`` (or of one shard of it) and write the maps to HDF5.
 
@@ -493,6 +522,8 @@ def run_sweep(
         HDF5 file to write (layout: docs/hdf5.md). Must not exist unless ``resume``.
     workers : int, optional
         Worker processes; default all cores this process may use. 1 computes in-process.
+        With ``executor="dask"``: the processes of the local cluster started when no
+        ``scheduler`` is given; not allowed with a ``scheduler`` (the cluster has its own).
     shard : tuple of int
         (I, N): compute only the tiles with ``tile_index % N == I``.
     resume : bool
@@ -505,6 +536,13 @@ def run_sweep(
     on_tile : callable, optional
         Called as ``on_tile(tile_index, rolls_computed)`` after each tile is written and
         flushed (``rolls_computed`` counts this call's rolls so far).
+    executor : {"local", "dask"}
+        "local": forked worker processes on this machine. "dask": tiles are tasks on a
+        dask.distributed cluster and this process writes the file as results arrive
+        (:mod:`dice_sweep.distributed`; optional dependency, docs/scaling.md).
+    scheduler : str, optional
+        With ``executor="dask"``: the scheduler's address (``tcp://host:8786``); None starts
+        a local cluster.
 
     Returns
     -------
@@ -513,16 +551,15 @@ def run_sweep(
     Raises
     ------
     DiceSweepError
-        On a bad argument, an existing file without ``resume``, or a file of another run.
+        On a bad argument, an existing file without ``resume``, a file of another run, or a
+        dask cluster that cannot be reached or runs another kernel.
     SweepInterrupted
         On Ctrl-C, after stopping the workers; the written tiles are kept.
     """
     started = time.perf_counter()
     _require_grid(cfg)
     shard = _check_shard(shard)
-    workers = default_workers() if workers is None else int(workers)
-    if workers < 1:
-        raise DiceSweepError(f"--workers {workers}: need at least 1")
+    workers = _check_executor(executor, scheduler, workers)
     job = SweepJob.from_config(cfg, tile_shape)
     header = _sweep_header(cfg, job, shard)
     path = Path(out_path)
@@ -553,10 +590,11 @@ def run_sweep(
 
     rolls_computed = 0
     try:
-        job.warm_up()  # before forking, so that every worker inherits the compiled kernel
+        if executor == "local":
+            job.warm_up()  # before forking, so that every worker inherits the compiled kernel
         with (
             _StopRequest() as stop,  # before forking: workers never see the default handler
-            _tile_results(job, todo, workers, stop) as results,
+            _executor_results(executor, scheduler, job, todo, workers, stop) as results,
             _open_output(path, header, tiles.count, resuming) as sweep_file,
             tqdm(
                 total=rolls_in_shard, initial=rolls_in_shard - rolls_todo, unit=" rolls",

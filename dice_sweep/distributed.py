@@ -1,0 +1,137 @@
+"""Tiles of a sweep as tasks on a dask.distributed cluster (``sweep --executor dask``).
+
+The only module that imports dask. The client (the ``dice-sweep sweep`` process) sends the
+:class:`~dice_sweep.sweep.SweepJob` to every worker once, submits one task per tile still to
+do, and hands each tile's maps back to :func:`~dice_sweep.sweep.run_sweep` as it completes,
+which writes it to the HDF5 file at once; resume, shards and Ctrl-C work as for local workers.
+A roll depends only on its own initial state and every worker runs the same kernel (checked:
+same dice_sweep version and physics sources), so the maps equal a local run's bitwise.
+
+dask is optional: ``pip install 'dice-sweep[dask]'``. Setting up a cluster: docs/scaling.md.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator, Sequence
+
+from dice_sweep import __version__
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.physics._cache_guard import source_digest
+
+CONNECT_TIMEOUT_SECONDS = 30.0
+_STOP_POLL_SECONDS = 0.2  # how often the client looks for Ctrl-C while tiles compute
+
+
+def _import_distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise DiceSweepError(
+            "--executor dask: dask.distributed is not installed; pip install 'dice-sweep[dask]'"
+        ) from None
+    return distributed
+
+
+def kernel_fingerprint() -> tuple[str, str]:
+    """(dice_sweep version, digest of the physics sources) of this process."""
+    return __version__, source_digest()
+
+
+def _compute_tile(job, index: int):
+    # a module-level function: dask pickles it by reference, so workers need dice_sweep installed
+    return index, job.compute_tile(index)
+
+
+def _connect(distributed, scheduler: str | None, workers: int | None, timeout: float):
+    """A client of the scheduler at ``scheduler``, or of a new local cluster when None."""
+    if scheduler is None:
+        # one single-threaded process per core: the numba kernel holds the GIL
+        cluster = distributed.LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
+        )
+        return distributed.Client(cluster), cluster
+    try:
+        return distributed.Client(scheduler, timeout=timeout), None
+    except (OSError, TimeoutError) as error:
+        raise DiceSweepError(
+            f"--scheduler {scheduler}: cannot connect within {timeout:g} s ({error}); "
+            "start one with `dask scheduler` (docs/scaling.md)"
+        ) from None
+
+
+def _check_workers(client, scheduler: str | None) -> int:
+    """Refuse a cluster without workers or with workers that run another kernel."""
+    fingerprints = client.run(kernel_fingerprint)
+    where = scheduler or "local cluster"
+    if not fingerprints:
+        raise DiceSweepError(f"--scheduler {where}: the cluster has no workers")
+    mine = kernel_fingerprint()
+    for address, theirs in fingerprints.items():
+        if tuple(theirs) != mine:
+            raise DiceSweepError(
+                f"--scheduler {where}: worker {address} runs dice_sweep {theirs[0]} with physics "
+                f"sources {theirs[1][:12]}, this client {mine[0]} with {mine[1][:12]}; install "
+                "the same dice_sweep on every worker (results would not be reproducible)"
+            )
+    return len(fingerprints)
+
+
+@contextlib.contextmanager
+def dask_tile_results(job, todo: Sequence[int], stop, scheduler: str | None = None,
+                      workers: int | None = None, timeout: float | None = None):
+    """Yield an iterator of (tile index, maps) in completion order, computed on a dask cluster.
+
+    Parameters
+    ----------
+    job : dice_sweep.sweep.SweepJob
+        The sweep's job; sent once to every worker.
+    todo : sequence of int
+        Tile indices to compute.
+    stop : object with a bool attribute ``requested``
+        Checked between results; once set, the iterator ends and the remaining tasks are
+        cancelled.
+    scheduler : str, optional
+        Address of a running scheduler, e.g. ``tcp://10.0.0.5:8786``; None starts a local
+        cluster of ``workers`` single-threaded processes for the duration of the call.
+    workers : int, optional
+        Worker processes of the local cluster (ignored with ``scheduler``).
+    timeout : float, optional
+        Seconds to wait for the scheduler to answer [default: CONNECT_TIMEOUT_SECONDS].
+
+    Raises
+    ------
+    DiceSweepError
+        If dask is missing, the scheduler does not answer, or a worker runs another kernel.
+    """
+    distributed = _import_distributed()
+    timeout = CONNECT_TIMEOUT_SECONDS if timeout is None else timeout
+    client, cluster = _connect(distributed, scheduler, workers, timeout)
+    pending = set()  # submitted and not yet consumed: cancelled on the way out
+    try:
+        _check_workers(client, scheduler)
+        shared_job = client.scatter(job, broadcast=True)
+        pending.update(client.submit(_compute_tile, shared_job, index, pure=False) for index in todo)
+        yield _completed(distributed, pending, stop)
+    finally:
+        if pending:
+            client.cancel(list(pending))
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _completed(distributed, pending: set, stop) -> Iterator:
+    # Drop each future once consumed so that its result can be released on the worker.
+    while pending and not stop.requested:
+        try:
+            finished, _ = distributed.wait(pending, timeout=_STOP_POLL_SECONDS, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            continue
+        for future in finished:
+            if stop.requested:  # stop at once: tiles computed but not yet written are lost
+                return
+            pending.discard(future)
+            result = future.result()  # re-raises a worker's exception here
+            future.release()
+            yield result

@@ -1,0 +1,142 @@
+"""Tests of dice_sweep.distributed: sweeps whose tiles are tasks on a dask.distributed cluster.
+
+A LocalCluster of 2 worker processes (spawned, so they import dice_sweep and load the kernel
+themselves, like remote machines) must give maps bitwise equal to the local run's, and
+resume a file that it or the local executor left incomplete.
+"""
+
+from pathlib import Path
+
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from dice_sweep.config import load_config, parse_config  # noqa: E402
+from dice_sweep.cli import main  # noqa: E402
+from dice_sweep.distributed import _check_workers, kernel_fingerprint  # noqa: E402
+from dice_sweep.errors import DiceSweepError  # noqa: E402
+from dice_sweep.storage import read_sweep  # noqa: E402
+from dice_sweep.sweep import SweepInterrupted, run_sweep  # noqa: E402
+from tests.test_sweep import CONFIG_TEXT, TILE, assert_same_maps, stop_after  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
+        yield local
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return parse_config(CONFIG_TEXT, "test.toml")
+
+
+@pytest.fixture(scope="module")
+def reference(cfg, tmp_path_factory):
+    path = tmp_path_factory.mktemp("reference") / "reference.h5"
+    run_sweep(cfg, path, workers=1, tile_shape=TILE, progress=False)
+    return read_sweep(path)
+
+
+def test_dask_cluster_gives_the_local_maps_bitwise(cluster, tmp_path):
+    """fig08 at 64 x 64 in 16 tiles: 2 dask workers against 1 local process."""
+    fig08 = load_config(ROOT / "configs" / "fig08.toml", ["grid.x.num=64", "grid.y.num=64"])
+    local, remote = tmp_path / "local.h5", tmp_path / "dask.h5"
+    run_sweep(fig08, local, workers=1, tile_shape=(16, 16), progress=False)
+    summary = run_sweep(fig08, remote, tile_shape=(16, 16), progress=False,
+                        executor="dask", scheduler=cluster.scheduler_address)
+    assert summary.complete and summary.rolls_computed == 64 * 64
+    data = read_sweep(remote)
+    assert data.complete and (data.status == 0).mean() > 0.99  # decided rolls, not placeholders
+    assert_same_maps(data, read_sweep(local))
+
+
+@pytest.mark.parametrize("first_executor", ["local", "dask"])
+def test_dask_resumes_an_interrupted_file_to_the_same_maps(cluster, cfg, reference, tmp_path, first_executor):
+    path = tmp_path / "interrupted.h5"
+    dask = {"executor": "dask", "scheduler": cluster.scheduler_address}
+    first = dask if first_executor == "dask" else {"workers": 1}
+    with pytest.raises(SweepInterrupted, match="--resume"):
+        run_sweep(cfg, path, tile_shape=TILE, progress=False, on_tile=stop_after(3), **first)
+    assert not read_sweep(path).complete
+    summary = run_sweep(cfg, path, tile_shape=TILE, progress=False, resume=True, **dask)
+    assert summary.complete and 0 < summary.rolls_computed < 70
+    assert_same_maps(read_sweep(path), reference)
+
+
+def test_dask_shards_merge_to_the_local_maps(cluster, cfg, reference, tmp_path):
+    from dice_sweep.sweep import merge_parts
+
+    parts = [tmp_path / f"part{i}.h5" for i in range(2)]
+    for i, part in enumerate(parts):
+        run_sweep(cfg, part, tile_shape=TILE, progress=False, shard=(i, 2),
+                  executor="dask", scheduler=cluster.scheduler_address)
+    merge_parts(parts, tmp_path / "merged.h5")
+    assert_same_maps(read_sweep(tmp_path / "merged.h5"), reference)
+
+
+def test_unreachable_scheduler_is_one_line_error(cfg, tmp_path, monkeypatch):
+    monkeypatch.setattr("dice_sweep.distributed.CONNECT_TIMEOUT_SECONDS", 2.0)
+    with pytest.raises(DiceSweepError, match=r"--scheduler tcp://127.0.0.1:9: cannot connect") as caught:
+        run_sweep(cfg, tmp_path / "x.h5", progress=False, executor="dask", scheduler="tcp://127.0.0.1:9")
+    assert "\n" not in str(caught.value)
+    assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"executor": "spark"}, "--executor 'spark': allowed values are local, dask"),
+        ({"scheduler": "tcp://h:8786"}, "--scheduler: only with --executor dask"),
+        ({"executor": "dask", "scheduler": "tcp://h:8786", "workers": 2}, "--workers: not with --scheduler"),
+    ],
+)
+def test_bad_executor_options_are_refused(cfg, tmp_path, options, message):
+    with pytest.raises(DiceSweepError, match=message):
+        run_sweep(cfg, tmp_path / "x.h5", progress=False, **options)
+
+
+class _FakeClient:
+    def __init__(self, answers):
+        self.answers = answers
+
+    def run(self, function):
+        return self.answers
+
+
+def test_workers_with_another_kernel_are_refused():
+    version, digest = kernel_fingerprint()
+    assert _check_workers(_FakeClient({"tcp://a:1": (version, digest)}), "tcp://s:1") == 1
+    with pytest.raises(DiceSweepError, match="worker tcp://b:2 runs dice_sweep"):
+        _check_workers(_FakeClient({"tcp://a:1": (version, digest), "tcp://b:2": (version, "0" * 64)}), "tcp://s:1")
+    with pytest.raises(DiceSweepError, match="has no workers"):
+        _check_workers(_FakeClient({}), "tcp://s:1")
+
+
+def test_cli_sweep_on_a_dask_scheduler(cluster, tmp_path):
+    from click.testing import CliRunner
+
+    out = tmp_path / "cli.h5"
+    args = ["sweep", str(ROOT / "configs" / "demo.toml"), "-o", str(out), "--set", "grid.x.num=16",
+            "--set", "grid.y.num=16", "--executor", "dask", "--scheduler", cluster.scheduler_address]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    assert "256 rolls" in result.output and "complete" in result.output
+    assert read_sweep(out).complete
+
+
+def test_cli_refuses_refine_with_dask(tmp_path):
+    from click.testing import CliRunner
+
+    args = ["sweep", str(ROOT / "configs" / "demo.toml"), "-o", str(tmp_path / "x.h5"), "--refine", "2", "--executor", "dask"]
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 2 and "--refine: cannot be combined" in result.output
+
+
+def test_missing_dask_is_one_line_error_naming_the_extra(cfg, tmp_path, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "distributed", None)  # import now fails
+    with pytest.raises(DiceSweepError, match=r"pip install 'dice-sweep\[dask\]'"):
+        run_sweep(cfg, tmp_path / "x.h5", progress=False, executor="dask")
+    assert not (tmp_path / "x.h5").exists()
