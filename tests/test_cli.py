@@ -197,7 +197,8 @@ def test_sweep_passes_options_to_run_sweep_and_plots(calls):
     assert result.exit_code == 0, result.stderr
     (name, (cfg, out_path), kwargs), plot_call = calls
     assert name == "run_sweep" and out_path == "out.h5"
-    assert kwargs == {"workers": 3, "shard": (1, 4), "resume": True, "progress": True}
+    assert kwargs == {"workers": 3, "shard": (1, 4), "resume": True, "progress": True,
+                      "executor": "local", "scheduler": None}
     assert cfg.grid.x.num == 128 and cfg.source == DEMO
     assert plot_call == ("plot_outcome_file", ("out.h5", "out.png"), {})
     assert result.stdout.splitlines() == ["summary line", "wrote the.png"]
@@ -206,7 +207,8 @@ def test_sweep_passes_options_to_run_sweep_and_plots(calls):
 def test_sweep_defaults(calls):
     result = run("sweep", DEMO, "-o", "out.h5", "--quiet")
     assert result.exit_code == 0, result.stderr
-    assert calls[0][2] == {"workers": None, "shard": (0, 1), "resume": False, "progress": False}
+    assert calls[0][2] == {"workers": None, "shard": (0, 1), "resume": False, "progress": False,
+                           "executor": "local", "scheduler": None}
     assert result.stdout == ""
 
 

@@ -11,8 +11,8 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from dice_sweep.config import load_config, parse_config  # noqa: E402
 from dice_sweep.cli import main  # noqa: E402
+from dice_sweep.config import load_config, parse_config  # noqa: E402
 from dice_sweep.distributed import _check_workers, kernel_fingerprint  # noqa: E402
 from dice_sweep.errors import DiceSweepError  # noqa: E402
 from dice_sweep.storage import read_sweep  # noqa: E402
