@@ -13,6 +13,7 @@ dask is optional: ``pip install 'dice-sweep[dask]'``. Setting up a cluster: docs
 from __future__ import annotations
 
 import contextlib
+import json
 from collections.abc import Iterator, Sequence
 
 from dice_sweep import __version__
@@ -43,6 +44,21 @@ def _compute_tile(job, index: int):
     return index, job.compute_tile(index)
 
 
+def _scheduler_address(scheduler: str) -> str:
+    """The address itself, or the one in a scheduler file (``*.json``)."""
+    if not scheduler.endswith(".json"):
+        return scheduler
+    # read here: distributed.Client(scheduler_file=...) waits forever for a missing file
+    try:
+        with open(scheduler, encoding="utf-8") as handle:
+            return str(json.load(handle)["address"])
+    except OSError as error:
+        reason = error.strerror or str(error)
+    except (ValueError, KeyError, TypeError):
+        reason = 'not a dask scheduler file (expected {"address": ...})'
+    raise DiceSweepError(f"--scheduler {scheduler}: {reason}; start one with `dask scheduler --scheduler-file {scheduler}`")
+
+
 def _connect(distributed, scheduler: str | None, workers: int | None, timeout: float):
     """A client of the scheduler at ``scheduler``, or of a new local cluster when None."""
     if scheduler is None:
@@ -51,8 +67,9 @@ def _connect(distributed, scheduler: str | None, workers: int | None, timeout: f
             n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None
         )
         return distributed.Client(cluster), cluster
+    address = _scheduler_address(scheduler)
     try:
-        return distributed.Client(scheduler, timeout=timeout), None
+        return distributed.Client(address, timeout=timeout), None
     except (OSError, TimeoutError) as error:
         raise DiceSweepError(
             f"--scheduler {scheduler}: cannot connect within {timeout:g} s ({error}); "
@@ -92,8 +109,10 @@ def dask_tile_results(job, todo: Sequence[int], stop, scheduler: str | None = No
         Checked between results; once set, the iterator ends and the remaining tasks are
         cancelled.
     scheduler : str, optional
-        Address of a running scheduler, e.g. ``tcp://10.0.0.5:8786``; None starts a local
-        cluster of ``workers`` single-threaded processes for the duration of the call.
+        Address of a running scheduler, e.g. ``tcp://10.0.0.5:8786``, or the JSON file that
+        ``dask scheduler --scheduler-file`` wrote (on a shared file system, as under SLURM);
+        None starts a local cluster of ``workers`` single-threaded processes for the duration
+        of the call.
     workers : int, optional
         Worker processes of the local cluster (ignored with ``scheduler``).
     timeout : float, optional

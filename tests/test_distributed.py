@@ -140,3 +140,18 @@ def test_missing_dask_is_one_line_error_naming_the_extra(cfg, tmp_path, monkeypa
     with pytest.raises(DiceSweepError, match=r"pip install 'dice-sweep\[dask\]'"):
         run_sweep(cfg, tmp_path / "x.h5", progress=False, executor="dask")
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_scheduler_file_is_accepted(cluster, cfg, reference, tmp_path):
+    """--scheduler PATH.json: the file `dask scheduler --scheduler-file` writes."""
+    import json
+
+    scheduler_file = tmp_path / "scheduler.json"
+    scheduler_file.write_text(json.dumps({"address": cluster.scheduler_address}))
+    run_sweep(cfg, tmp_path / "f.h5", tile_shape=TILE, progress=False, executor="dask", scheduler=str(scheduler_file))
+    assert_same_maps(read_sweep(tmp_path / "f.h5"), reference)
+    with pytest.raises(DiceSweepError, match="missing.json: No such file"):
+        run_sweep(cfg, tmp_path / "g.h5", progress=False, executor="dask", scheduler=str(tmp_path / "missing.json"))
+    (tmp_path / "bad.json").write_text("[1, 2]")
+    with pytest.raises(DiceSweepError, match="bad.json: not a dask scheduler file"):
+        run_sweep(cfg, tmp_path / "g.h5", progress=False, executor="dask", scheduler=str(tmp_path / "bad.json"))
