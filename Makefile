@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: venv demo test figures measured bench clean
+.PHONY: venv demo test figures measured bench shards clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -40,6 +40,31 @@ chaos: $(STAMP)
 	$(BIN)/python scripts/chaos_tables.py contact
 	$(BIN)/python scripts/chaos_tables.py refine
 	$(BIN)/python scripts/chaos_tables.py control
+
+# A sweep cut into shards, one process each, then merged (docs/scaling.md):
+#   make -j2 shards CONFIG=configs/fig10.toml SHARDS=8 SET="--set grid.x.num=1024"
+# gives out/shards/fig10/part-I-of-8.h5 and out/fig10.h5. A shard is written to .partial and
+# renamed only when complete, so an interrupted run is resumed by the same command, and make
+# never takes an incomplete file for a finished one.
+CONFIG ?= configs/fig08.toml
+SHARDS ?= 4
+SET ?=
+SHARD_OUT ?= out
+SWEEP_NAME := $(basename $(notdir $(CONFIG)))
+SHARD_DIR := $(SHARD_OUT)/shards/$(SWEEP_NAME)
+SHARD_PARTS := $(foreach i,$(shell seq 0 $$(($(SHARDS) - 1))),$(SHARD_DIR)/part-$(i)-of-$(SHARDS).h5)
+
+shards: $(SHARD_OUT)/$(SWEEP_NAME).h5
+
+$(SHARD_DIR)/part-%-of-$(SHARDS).h5: $(CONFIG) | $(STAMP)
+	@mkdir -p $(SHARD_DIR)
+	$(BIN)/dice-sweep sweep $(CONFIG) $(SET) -o $@.partial --shard $*/$(SHARDS) --workers 1 --resume --quiet
+	mv $@.partial $@
+
+$(SHARD_OUT)/$(SWEEP_NAME).h5: $(SHARD_PARTS)
+	rm -f $@.partial
+	$(BIN)/dice-sweep merge $^ -o $@.partial
+	mv $@.partial $@
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
