@@ -38,6 +38,13 @@ class _Commands(click.Group):
             ctx.exit(_exit_code(error))
 
 
+def _fast_kernel_start():
+    # commands that only run our kernels skip numba's 0.3-0.5 s BLAS probe (see the module)
+    from dice_sweep.physics._fast_start import skip_numba_blas_probe
+
+    skip_numba_blas_probe()
+
+
 def _load(config_path, overrides):
     from dice_sweep.config import load_config
 
@@ -93,6 +100,7 @@ def roll(config, overrides, as_json, png_path, gif_path):
     \b
     Example: dice-sweep roll configs/table1.toml --set initial.omega0=20 --json
     """
+    _fast_kernel_start()
     cfg = _load(config, overrides)
     from dice_sweep.roll import roll_config
 
@@ -138,6 +146,7 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     \b
     Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
     """
+    _fast_kernel_start()
     from dice_sweep.sweep import run_sweep
 
     cfg = _load(config, overrides)

@@ -1,0 +1,132 @@
+"""Throughput of sweeps beyond one process: local workers, a dask cluster, and an estimate
+for N machines from measured costs (issue 7; results in docs/scaling.md). Public API only.
+
+Measures, on this machine:
+1. the cost of one 64 x 64 tile (``SweepJob.compute_tile``) for fig08 (n = 4) and fig10
+   (n = 20, a zoom of the chaotic region): the unit of work of every executor;
+2. what the writing process pays per tile: pickling the maps there and back (what crosses
+   the network) and writing them to HDF5 (timed as ``merge_parts`` of a whole file, which
+   reads and writes every tile);
+3. fig08 at --sweep-num with the local executor and with dask (a LocalCluster of 2
+   single-threaded worker processes, started before the clock), both in this process, so
+   the difference is dask's per-task overhead;
+then estimates the wall time of a large sweep on N machines from (1) and (2).
+
+    python scripts/bench_scaling.py [--sweep-num 1024] [--write]
+"""
+
+import argparse
+import pickle
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from dice_sweep.config import load_config
+from dice_sweep.sweep import SweepJob, merge_parts, run_sweep
+
+ROOT = Path(__file__).resolve().parent.parent
+TILE = (64, 64)
+SAMPLE_TILES = 12  # tiles timed per config, spread over the grid
+
+
+def tile_cost(config_name, num):
+    """(seconds per 64 x 64 tile, rolls/s) on one core, averaged over SAMPLE_TILES tiles."""
+    cfg = load_config(ROOT / "configs" / config_name, [f"grid.x.num={num}", f"grid.y.num={num}"])
+    job = SweepJob.from_config(cfg, TILE)
+    job.warm_up()
+    picks = [round(i * (job.tiles.count - 1) / (SAMPLE_TILES - 1)) for i in range(SAMPLE_TILES)]
+    start = time.perf_counter()
+    for index in picks:
+        job.compute_tile(index)
+    seconds = (time.perf_counter() - start) / len(picks)
+    return seconds, TILE[0] * TILE[1] / seconds, job
+
+
+def client_cost(job, path, tmp):
+    """(pickle round trip s, pickled bytes, HDF5 read+write s) per tile."""
+    maps = job.compute_tile(0)
+    start = time.perf_counter()
+    for _ in range(50):
+        blob = pickle.dumps(maps, protocol=pickle.HIGHEST_PROTOCOL)
+        pickle.loads(blob)
+    pickled = (time.perf_counter() - start) / 50
+    start = time.perf_counter()
+    merge_parts([path], Path(tmp) / "copy.h5")
+    written = (time.perf_counter() - start) / job.tiles.count
+    return pickled, len(blob), written
+
+
+def sweep_seconds(cfg, path, **options):
+    start = time.perf_counter()
+    run_sweep(cfg, path, progress=False, tile_shape=TILE, **options)
+    return time.perf_counter() - start
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sweep-num", type=int, default=1024, help="cells per axis of the fig08 sweeps")
+    parser.add_argument("--write", action="store_true", help="write docs/scaling.md")
+    args = parser.parse_args()
+    import distributed
+
+    num = args.sweep_num
+    fig08 = load_config(ROOT / "configs" / "fig08.toml", [f"grid.x.num={num}", f"grid.y.num={num}"])
+    lines = ["| tile of 64 x 64 rolls, one core | s per tile | rolls/s |", "|---|---|---|"]
+    costs = {}
+    for name in ("fig08.toml", "fig10.toml"):
+        seconds, rate, job = tile_cost(name, num)
+        costs[name] = (seconds, rate)
+        lines.append(f"| {name} ({SAMPLE_TILES} tiles spread over its {num} x {num} grid) | {seconds * 1e3:.1f} ms | {rate:,.0f} |")
+    with tempfile.TemporaryDirectory() as tmp:
+        local = {w: sweep_seconds(fig08, Path(tmp) / f"local{w}.h5", workers=w) for w in (1, 2)}
+        pickled, size, written = client_cost(SweepJob.from_config(fig08, TILE), Path(tmp) / "local1.h5", tmp)
+        start = time.perf_counter()
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+            cluster_start = time.perf_counter() - start
+            first = sweep_seconds(fig08, Path(tmp) / "dask1.h5", executor="dask", scheduler=cluster.scheduler_address)
+            again = sweep_seconds(fig08, Path(tmp) / "dask2.h5", executor="dask", scheduler=cluster.scheduler_address)
+    n_tiles = SweepJob.from_config(fig08, TILE).tiles.count
+    per_tile_client = pickled + written
+    lines += ["", f"Per tile, in the process that writes the file: pickle round trip {pickled * 1e3:.2f} ms "
+              f"({size / 1e3:.0f} kB pickled), HDF5 read and write {written * 1e3:.2f} ms (merge of the "
+              f"{n_tiles}-tile file): **{per_tile_client * 1e3:.2f} ms**, so one client can take in at most "
+              f"**{TILE[0] * TILE[1] / per_tile_client:,.0f} rolls/s**.", "",
+              f"| fig08 at {num} x {num} ({n_tiles} tiles), in this process | wall time (s) | rolls/s |",
+              "|---|---|---|"]
+    rolls = num * num
+    rows = [("local executor, 1 worker (in-process)", local[1]), ("local executor, 2 forked workers", local[2]),
+            ("dask, LocalCluster of 2 worker processes, first sweep (workers load the kernel)", first),
+            ("dask, same cluster, second sweep", again)]
+    for name, seconds in rows:
+        lines.append(f"| {name} | {seconds:.2f} | {rolls / seconds:,.0f} |")
+    overhead = (again - local[2]) / n_tiles
+    lines += ["", f"Starting the LocalCluster took {cluster_start:.1f} s (not in the times above). "
+              f"dask against local workers: {overhead * 1e3:+.1f} ms per tile.", ""]
+    # estimate: compute spread over the cores, bounded below by what one client can take in
+    big = 16384
+    lines += [f"Estimate for fig10 at {big} x {big} ({big * big / 1e6:.0f} M rolls, "
+              f"{big * big // (TILE[0] * TILE[1]):,} tiles) on N machines of C cores, from the fig10 "
+              "tile cost above: T = tiles x max(tile cost / (N C), client cost per tile) + start-up "
+              "(not included):", "",
+              "| machines x cores | compute-bound time | client-bound floor | estimate |", "|---|---|---|---|"]
+    tiles_big = big * big // (TILE[0] * TILE[1])
+    tile_s = costs["fig10.toml"][0]
+    for machines, cores in ((1, 2), (4, 8), (16, 32), (64, 32), (256, 32)):
+        compute = tiles_big * tile_s / (machines * cores)
+        floor = tiles_big * per_tile_client
+        lines.append(f"| {machines} x {cores} | {compute:,.0f} s | {floor:,.0f} s | {max(compute, floor):,.0f} s |")
+    crossover = tile_s / per_tile_client
+    lines += ["", f"The client stops keeping up at about **{crossover:,.0f} cores** (fig10 tile cost / client "
+              "cost per tile); beyond that, split the sweep with --shard so that several clients write, "
+              "and merge the parts."]
+    table = "\n".join(lines)
+    print(table)
+    if args.write:
+        head = (ROOT / "docs" / "scaling_intro.md").read_text()
+        (ROOT / "docs" / "scaling.md").write_text(head + "\n## Measured here\n\n" + table + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

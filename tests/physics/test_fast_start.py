@@ -1,0 +1,45 @@
+"""Tests of dice_sweep.physics._fast_start: the CLI's skipping of numba's BLAS probe.
+
+Each runs in a fresh interpreter: the probe happens once per process.
+"""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from dice_sweep.config import load_config
+from dice_sweep.roll import roll_config
+
+ROOT = Path(__file__).resolve().parents[2]
+CHILD = """
+import sys, json
+from dice_sweep.physics._fast_start import skip_numba_blas_probe
+took = skip_numba_blas_probe()
+from dice_sweep.config import load_config
+from dice_sweep.roll import roll_config
+report = roll_config(load_config("configs/table1.toml", ["initial.omega0=20"]))
+linalg_during_roll = "scipy.linalg" in sys.modules
+from scipy.optimize import least_squares  # scipy.linalg still imports afterwards
+fit = least_squares(lambda p: p - 3.0, [0.0])
+print(json.dumps([took, linalg_during_roll, report.outcome, report.impacts, report.t_decided, float(fit.x[0])]))
+"""
+
+
+def test_kernel_runs_without_scipy_linalg_and_gives_the_same_roll():
+    import json
+
+    child = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, check=True, cwd=ROOT)
+    took, linalg_during_roll, outcome, impacts, t_decided, fitted = json.loads(child.stdout)
+    assert took and not linalg_during_roll
+    here = roll_config(load_config(ROOT / "configs" / "table1.toml", ["initial.omega0=20"]))
+    assert (outcome, impacts) == (here.outcome, here.impacts)
+    assert t_decided == here.t_decided  # bitwise: the probe changes nothing in the kernel
+    assert np.isclose(fitted, 3.0)
+
+
+def test_probe_is_not_skipped_once_numba_has_loaded_its_registry():
+    code = "import numba.np.arraymath\nfrom dice_sweep.physics._fast_start import skip_numba_blas_probe\nprint(skip_numba_blas_probe())"
+    child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert child.stdout.strip() == "False"
