@@ -91,7 +91,8 @@ def main():
     lines += ["", f"Per tile, in the process that writes the file: pickle round trip {pickled * 1e3:.2f} ms "
               f"({size / 1e3:.0f} kB pickled), HDF5 read and write {written * 1e3:.2f} ms (merge of the "
               f"{n_tiles}-tile file): **{per_tile_client * 1e3:.2f} ms**, so one client can take in at most "
-              f"**{TILE[0] * TILE[1] / per_tile_client:,.0f} rolls/s**.", "",
+              f"**{TILE[0] * TILE[1] / per_tile_client:,.0f} rolls/s** ({1 / per_tile_client:,.0f} tiles/s). "
+              f"A 1 Gbit/s link carries {125e6 / size:,.0f} such tiles/s.", "",
               f"| fig08 at {num} x {num} ({n_tiles} tiles), in this process | wall time (s) | rolls/s |",
               "|---|---|---|"]
     rolls = num * num
