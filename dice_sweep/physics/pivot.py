@@ -41,7 +41,13 @@ PIVOT_BALANCED = 3  # resting on the corner at the top: unstable equilibrium
 PIVOT_DECIDED = 4  # friction or drag took the energy below the barrier during the pivot
 PIVOT_TIMEOUT = 5  # the time allowed ran out during the pivot
 
-ODE_STEP = 1e-3  # x sqrt(rho/g): Runge-Kutta step of a sliding or drag-damped pivot
+# Sliding or drag-damped pivots (pivot_ode): adaptive Dormand-Prince steps.
+ODE_TOL = 1e-12  # local error per step, relative to 1 rad, sqrt(g/rho), rho and sqrt(g rho)
+ODE_FIRST_STEP = 1e-2  # x sqrt(rho/g): trial first step (the error control adapts it)
+ODE_MAX_STEP = 5e-2  # x sqrt(rho/g): longest step, so that a brief event is still seen
+ODE_MIN_STEP = 1e-13  # x sqrt(rho/g): a step this short is taken whatever its error
+EVENT_SAMPLES = 4  # an accepted step's dense output is tested at 1/4, 1/2, 3/4 for events
+EVENT_TIME_TOL = 1e-13  # x sqrt(rho/g): width of the bisection bracket of an event time
 
 BALANCE_TOL = 1e-12  # relative kinetic energy at the top below which the die is balanced
 WALL_SAMPLES = 64
@@ -359,22 +365,79 @@ def _contact_rates(y, mode, rho, inertia, g, mu, c, rates):
     return normal, friction
 
 
+# Dormand-Prince 5(4) (Dormand & Prince 1980), first same as last, with Shampine's quartic
+# dense output: the coefficients of scipy.integrate.RK45.
+DP_A21 = 1.0 / 5.0
+DP_A31, DP_A32 = 3.0 / 40.0, 9.0 / 40.0
+DP_A41, DP_A42, DP_A43 = 44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0
+DP_A51, DP_A52, DP_A53, DP_A54 = 19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0
+DP_A61, DP_A62, DP_A63, DP_A64, DP_A65 = (9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0,
+                                          -5103.0 / 18656.0)
+DP_B1, DP_B3, DP_B4, DP_B5, DP_B6 = 35.0 / 384.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0
+DP_E1, DP_E3, DP_E4, DP_E5, DP_E6, DP_E7 = (-71.0 / 57600.0, 71.0 / 16695.0, -71.0 / 1920.0, 17253.0 / 339200.0,
+                                            -22.0 / 525.0, 1.0 / 40.0)
+DP_P0 = (-8048581381.0 / 2820520608.0, 8663915743.0 / 2820520608.0, -12715105075.0 / 11282082432.0)
+DP_P2 = (131558114200.0 / 32700410799.0, -68118460800.0 / 10900136933.0, 87487479700.0 / 32700410799.0)
+DP_P3 = (-1754552775.0 / 470086768.0, 14199869525.0 / 1410260304.0, -10690763975.0 / 1880347072.0)
+DP_P4 = (127303824393.0 / 49829197408.0, -318862633887.0 / 49829197408.0, 701980252875.0 / 199316789632.0)
+DP_P5 = (-282668133.0 / 205662961.0, 2019193451.0 / 616988883.0, -1453857185.0 / 822651844.0)
+DP_P6 = (40617522.0 / 29380423.0, -110615467.0 / 29380423.0, 69997945.0 / 29380423.0)
+
+
 @numba.njit(cache=True)
-def _rk4_contact(y, h, mode, rho, inertia, g, mu, c, out, k):
+def _dp5_contact(y, h, mode, rho, inertia, g, mu, c, scale, k, tmp, out):
+    """One Dormand-Prince step of length h from y; k[0] must hold the rates at y.
+
+    Writes the fifth-order solution to ``out`` and its rates to k[6] (the next step's k[0]);
+    returns the embedded error estimate in units of the tolerance, max over i of
+    |error_i| / scale[i].
+    """
     for i in range(4):
-        out[i] = y[i]
-    _contact_rates(y, mode, rho, inertia, g, mu, c, k[0])
+        tmp[i] = y[i] + h * DP_A21 * k[0, i]
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[1])
     for i in range(4):
-        out[i] = y[i] + 0.5 * h * k[0, i]
-    _contact_rates(out, mode, rho, inertia, g, mu, c, k[1])
+        tmp[i] = y[i] + h * (DP_A31 * k[0, i] + DP_A32 * k[1, i])
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[2])
     for i in range(4):
-        out[i] = y[i] + 0.5 * h * k[1, i]
-    _contact_rates(out, mode, rho, inertia, g, mu, c, k[2])
+        tmp[i] = y[i] + h * (DP_A41 * k[0, i] + DP_A42 * k[1, i] + DP_A43 * k[2, i])
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[3])
     for i in range(4):
-        out[i] = y[i] + h * k[2, i]
-    _contact_rates(out, mode, rho, inertia, g, mu, c, k[3])
+        tmp[i] = y[i] + h * (DP_A51 * k[0, i] + DP_A52 * k[1, i] + DP_A53 * k[2, i] + DP_A54 * k[3, i])
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[4])
     for i in range(4):
-        out[i] = y[i] + h * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i]) / 6.0
+        tmp[i] = y[i] + h * (DP_A61 * k[0, i] + DP_A62 * k[1, i] + DP_A63 * k[2, i] + DP_A64 * k[3, i]
+                             + DP_A65 * k[4, i])
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[5])
+    for i in range(4):
+        out[i] = y[i] + h * (DP_B1 * k[0, i] + DP_B3 * k[2, i] + DP_B4 * k[3, i] + DP_B5 * k[4, i]
+                             + DP_B6 * k[5, i])
+    _contact_rates(out, mode, rho, inertia, g, mu, c, k[6])
+    err = 0.0
+    for i in range(4):
+        e = h * (DP_E1 * k[0, i] + DP_E3 * k[2, i] + DP_E4 * k[3, i] + DP_E5 * k[4, i] + DP_E6 * k[5, i]
+                 + DP_E7 * k[6, i])
+        err = max(err, abs(e) / scale[i])
+    if math.isnan(err):
+        return math.inf
+    return err
+
+
+@numba.njit(cache=True)
+def _dp5_dense(y, h, k, theta, out):
+    """State a fraction ``theta`` into the last Dormand-Prince step from y (quartic, error
+    of the order of the step's own)."""
+    t2 = theta * theta
+    t3 = t2 * theta
+    t4 = t3 * theta
+    w0 = theta + DP_P0[0] * t2 + DP_P0[1] * t3 + DP_P0[2] * t4
+    w2 = DP_P2[0] * t2 + DP_P2[1] * t3 + DP_P2[2] * t4
+    w3 = DP_P3[0] * t2 + DP_P3[1] * t3 + DP_P3[2] * t4
+    w4 = DP_P4[0] * t2 + DP_P4[1] * t3 + DP_P4[2] * t4
+    w5 = DP_P5[0] * t2 + DP_P5[1] * t3 + DP_P5[2] * t4
+    w6 = DP_P6[0] * t2 + DP_P6[1] * t3 + DP_P6[2] * t4
+    for i in range(4):
+        out[i] = y[i] + h * (w0 * k[0, i] + w2 * k[2, i] + w3 * k[3, i] + w4 * k[4, i] + w5 * k[5, i]
+                             + w6 * k[6, i])
 
 
 @numba.njit(cache=True)
@@ -433,16 +496,26 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
 
 
 @numba.njit(cache=True)
+def _event_holds(found, stop_at_decision):
+    return found != 0 and (found != 5 or stop_at_decision)
+
+
+@numba.njit(cache=True)
 def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision, out, hit):
-    """Follow a pivot with Coulomb slip and/or air drag to its next event (ODE, RK4).
+    """Follow a pivot with Coulomb slip and/or air drag to its next event (ODE).
 
     ``slip0`` is the corner's slip velocity (m/s) at the start; ``stop_at_decision`` False
     ignores the decision event (for following a die to rest). Same contract as
     :func:`pivot_next`, plus out[3] = slid distance of the corner (m) and
     out[4] = its slip velocity (m/s) at the event, and two more results: PIVOT_DECIDED when
     friction or drag took the energy below the barrier, PIVOT_TIMEOUT when ``t_left`` (s) ran
-    out (out then holds the state at exactly t_left: sample_records relies on that). Events are
-    located by bisection of the step to about 1e-12 of a step.
+    out (out then holds the state at exactly t_left: sample_records relies on that).
+
+    Adaptive Dormand-Prince 5(4) steps with local error below ODE_TOL of the die's scales.
+    After each accepted step the event predicate (:func:`_contact_event`) is tested at its end
+    and, when it holds there, on the step's dense output at EVENT_SAMPLES points and by
+    bisection to EVENT_TIME_TOL; the step is then taken again, for real, to the event, so that
+    the event holds in the state returned (the loop's next pass acts on it).
     """
     g = fpar[FP_G]
     mu = fpar[FP_MU]
@@ -450,21 +523,34 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     inertia = fpar[FP_INERTIA]
     rho, _ = corner_geometry(fpar, corner)
     chi_right, chi_left = flat_angles(fpar, n, corner)
-    h_max = ODE_STEP * math.sqrt(rho / g)
+    time_unit = math.sqrt(rho / g)
+    h_max = ODE_MAX_STEP * time_unit
+    h_min = ODE_MIN_STEP * time_unit
+    t_tol = EVENT_TIME_TOL * time_unit
+    scale = np.empty(4)
+    scale[0] = ODE_TOL
+    scale[1] = ODE_TOL / time_unit
+    scale[2] = ODE_TOL * rho
+    scale[3] = ODE_TOL * rho / time_unit
     y = np.zeros(4)
     y[0] = min(max(chi0, chi_right), chi_left)
     y[1] = omega0
     y[3] = slip0
     trial = np.zeros(4)
-    k = np.zeros((4, 4))
+    tmp = np.zeros(4)
+    k = np.zeros((7, 4))
     rates = np.zeros(4)
     state = np.zeros(6)
     mode = MODE_STICK if slip0 == 0.0 else (1 if slip0 > 0.0 else -1)
     t = 0.0
+    h = ODE_FIRST_STEP * time_unit
     kind = PIVOT_TIMEOUT
+    event = -1  # the event at y, -1 when not known yet
+    fresh = False  # k[0] holds the rates at y in the current mode
     max_steps = int(t_left / h_max) + 2 * int(1e6)
     for _ in range(max_steps):
-        event = _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+        if event < 0:
+            event = _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
         if event == 4:
             # friction transition at this instant: slide (direction against the needed force)
             normal, friction = _contact_rates(y, MODE_STICK, rho, inertia, g, mu, c, rates)
@@ -475,6 +561,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
                 mode = 1 if y[3] > 0.0 else -1
             else:
                 mode = 1 if friction < 0.0 else -1  # slide against the force sticking needs
+            fresh = False
         elif event == 5 and not stop_at_decision:
             event = 0
         elif event != 0:
@@ -483,30 +570,59 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
         if mode == MODE_STICK and abs(y[1]) < 1e-12 * math.sqrt(g / rho) and abs(math.cos(y[0])) < 1e-9:
             kind = PIVOT_BALANCED
             break
-        h = min(h_max, t_left - t)
-        if h <= 0.0:
+        if t_left - t <= 0.0:
             kind = PIVOT_TIMEOUT
             break
-        _rk4_contact(y, h, mode, rho, inertia, g, mu, c, trial, k)
+        if not fresh:
+            _contact_rates(y, mode, rho, inertia, g, mu, c, k[0])
+            fresh = True
+        while True:
+            step = min(h, t_left - t)
+            err = _dp5_contact(y, step, mode, rho, inertia, g, mu, c, scale, k, tmp, trial)
+            if err <= 1.0 or step <= h_min:
+                break
+            h = step * max(0.2, 0.9 * err ** -0.2)
+        # the usual controller: growth at most 5 x, at most h_max; a step cut short by t_left
+        # leaves h as it was
+        grow = 5.0 if err < 1e-4 else min(5.0, 0.9 * err ** -0.2)
+        h = min(max(h if step < h else 0.0, step * grow), h_max)
         probe = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
-        if probe == 5 and not stop_at_decision:
-            probe = 0
-        if probe != 0:
-            # locate the event inside the step by bisection on the step length
+        if _event_holds(probe, stop_at_decision):
+            # first sample of the dense output where the event holds, then bisection
             lo = 0.0
-            hi = h
-            for _ in range(45):
+            hi = step
+            for j in range(1, EVENT_SAMPLES):
+                theta = j / EVENT_SAMPLES
+                _dp5_dense(y, step, k, theta, tmp)
+                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                if _event_holds(found, stop_at_decision):
+                    hi = theta * step
+                    break
+                lo = theta * step
+            while hi - lo > t_tol:
                 mid = 0.5 * (lo + hi)
-                _rk4_contact(y, mid, mode, rho, inertia, g, mu, c, trial, k)
-                found = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
-                if found != 0 and (found != 5 or stop_at_decision):
+                _dp5_dense(y, step, k, mid / step, tmp)
+                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                if _event_holds(found, stop_at_decision):
                     hi = mid
                 else:
                     lo = mid
-            h = hi
-            _rk4_contact(y, h, mode, rho, inertia, g, mu, c, trial, k)
-        y[:] = trial
-        t += h
+            # a real step to hi; where the dense output was off by its own small error and the
+            # event does not hold there yet, move on by doubling amounts (the full step has it)
+            gap = t_tol
+            while True:
+                _dp5_contact(y, hi, mode, rho, inertia, g, mu, c, scale, k, tmp, trial)
+                probe = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                if _event_holds(probe, stop_at_decision) or hi >= step:
+                    break
+                hi = min(hi + gap, step)
+                gap *= 2.0
+            step = hi
+        for i in range(4):
+            y[i] = trial[i]
+            k[0, i] = k[6, i]  # first same as last: the rates at the new y
+        t = t_left if step == t_left - t else t + step
+        event = probe
     out[0] = y[0]
     out[1] = y[1]
     out[2] = t
