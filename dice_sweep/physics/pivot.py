@@ -32,7 +32,16 @@ import numpy as np
 
 from dice_sweep.physics.flight import SURF_LEFT, SURF_RIGHT, SURF_TABLE, corner_offset
 from dice_sweep.physics.outcome import corner_geometry, decided_side
-from dice_sweep.physics.params import FP_DRAG, FP_G, FP_INERTIA, FP_MU, FP_RHO_MAX, FP_WALL
+from dice_sweep.physics.params import (
+    FP_COM_X,
+    FP_COM_Y,
+    FP_DRAG,
+    FP_G,
+    FP_INERTIA,
+    FP_MU,
+    FP_RHO_MAX,
+    FP_WALL,
+)
 
 PIVOT_LIFTOFF = 0
 PIVOT_FLAT = 1  # the next corner reached the table
@@ -42,12 +51,19 @@ PIVOT_DECIDED = 4  # friction or drag took the energy below the barrier during t
 PIVOT_TIMEOUT = 5  # the time allowed ran out during the pivot
 
 # Sliding or drag-damped pivots (pivot_ode): adaptive Dormand-Prince steps.
-ODE_TOL = 1e-12  # local error per step, relative to 1 rad, sqrt(g/rho), rho and sqrt(g rho)
+ODE_TOL = 1e-14  # local error per step, relative to 1 rad, sqrt(g/rho), rho and sqrt(g rho)
 ODE_FIRST_STEP = 1e-2  # x sqrt(rho/g): trial first step (the error control adapts it)
 ODE_MAX_STEP = 5e-2  # x sqrt(rho/g): longest step, so that a brief event is still seen
 ODE_MIN_STEP = 1e-13  # x sqrt(rho/g): a step this short is taken whatever its error
 EVENT_SAMPLES = 4  # an accepted step's dense output is tested at 1/4, 1/2, 3/4 for events
 EVENT_TIME_TOL = 1e-13  # x sqrt(rho/g): width of the bisection bracket of an event time
+STICK_SAMPLE = 1e-2  # rad: spacing of the tests for lift-off and slip on a closed-form sticking path
+STICK_TURN_MARGIN = 1e-9  # x g rho: least energy over the top for a closed-form sticking path
+# x sqrt(g rho): a slip this slow at the start of a pivot is round-off of a corner brought to
+# rest, and the pivot starts sticking. A 3e-17 m/s slip left by the impact once started a
+# mu = 1e6 slide whose normal force came out negative (the slide is inconsistent at such mu),
+# a lift-off at the first instant (test_sticking_pivot_ode_matches_the_closed_form).
+SLIP_TOL = 1e-12
 
 BALANCE_TOL = 1e-12  # relative kinetic energy at the top below which the die is balanced
 WALL_SAMPLES = 64
@@ -496,6 +512,137 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
 
 
 @numba.njit(cache=True)
+def _stick_event(y, rho, inertia, g, mu, rates):
+    """Lift-off (3) or slip (4) of a sticking corner without drag in state y, else 0: the
+    tests of :func:`_contact_event`, with the same arithmetic."""
+    normal, friction = _contact_rates(y, MODE_STICK, rho, inertia, g, mu, 0.0, rates)
+    if -g + y[1] * y[1] * rho * math.sin(y[0]) >= 0.0:
+        return 3
+    if not math.isinf(mu) and abs(friction) > mu * normal:
+        return 4
+    return 0
+
+
+@numba.njit(cache=True)
+def _stick_margin(sin_chi, cos_chi, e, rho, g, alpha, mu):
+    """max(released-corner lift, |F| - mu N) (m/s^2) of a sticking corner without drag at
+    energy e: the event of :func:`_stick_event` is due where it is >= 0.
+
+    With omega^2 = 2 (e - g rho s) / (rho^2 (1 + alpha)), s = sin chi, the forces per unit
+    mass are F = cos chi P(s) and N = g alpha / (1 + alpha) + s P(s), with
+    P(s) = 3 g s / (1 + alpha) - 2 e / (rho (1 + alpha)).
+    """
+    w2 = 2.0 * (e - g * rho * sin_chi) / (rho * rho * (1.0 + alpha))
+    lift = w2 * rho * sin_chi - g
+    if math.isinf(mu):
+        return lift
+    p = (3.0 * g * sin_chi - 2.0 * e / rho) / (1.0 + alpha)
+    normal = g * alpha / (1.0 + alpha) + sin_chi * p
+    return max(lift, abs(cos_chi * p) - mu * normal)
+
+
+@numba.njit(cache=True)
+def _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_room, probe, rates):
+    """Move a sticking pivot without drag along its exact path to its next event.
+
+    Without drag a sticking pivot keeps its energy, so omega and the contact forces are
+    known functions of chi (the closed form of :func:`pivot_next`). Lift-off and slip are
+    tested on a grid of chi spaced at most STICK_SAMPLE, the first sign change of
+    :func:`_stick_margin` is located by the Illinois method, and the time is the elliptic
+    integral :func:`pivot_time`. Returns that time (s) with y moved to the event, or -1 with
+    y untouched when the closed form does not apply: omega = 0, energy less than
+    STICK_TURN_MARGIN over the top of the corner (turning points, and pivot_time's domain),
+    a wall within reach, a loaded die that may be
+    decided on the way (its barrier changes with the side below), or more time than
+    ``t_room``. The event itself is left to :func:`_contact_event` in the caller.
+    """
+    omega = y[1]
+    if omega == 0.0:
+        return -1.0
+    half_width = fpar[FP_WALL]
+    if not math.isinf(half_width) and abs(px + y[2]) + 2.0 * fpar[FP_RHO_MAX] >= half_width:
+        return -1.0
+    alpha = inertia / (rho * rho)
+    chi0 = y[0]
+    e = pivot_energy(chi0, omega, rho, g, alpha)
+    fair = fpar[FP_COM_X] == 0.0 and fpar[FP_COM_Y] == 0.0
+    if not fair and e < g * fpar[FP_RHO_MAX]:
+        return -1.0
+    # pivot_time is written for omega^2 > 0 at the top, even where the path stays below it:
+    # a rocking die going down with e < g rho once got a time of 0
+    # (tests/measured/test_tracks.py::test_convention_glitches_and_missing_frames_are_recovered)
+    if e - g * rho <= STICK_TURN_MARGIN * g * rho:
+        return -1.0
+    chi_end = chi_left if omega > 0.0 else chi_right
+    direction = 1.0 if omega > 0.0 else -1.0
+    # Grid up to the flat angle included (a lift-off or slip just before it comes first; at
+    # the flat angle itself _contact_event reports the flat side). sin and cos of the grid
+    # points by rotation: a few ulp of drift, enough to bracket.
+    samples = max(int(abs(chi_end - chi0) / STICK_SAMPLE) + 1, 4)
+    step = (chi_end - chi0) / samples
+    cs = math.cos(step)
+    ss = math.sin(step)
+    sin_chi = math.sin(chi0)
+    cos_chi = math.cos(chi0)
+    lo = chi0
+    hi = chi_end
+    # the caller found no event at chi0; should round-off make the margin say otherwise,
+    # the event is located right after chi0
+    f_lo = min(_stick_margin(sin_chi, cos_chi, e, rho, g, alpha, mu), -1e-300)
+    f_hi = 0.0
+    for j in range(1, samples + 1):
+        sin_chi, cos_chi = sin_chi * cs + cos_chi * ss, cos_chi * cs - sin_chi * ss
+        chi = chi_end if j == samples else chi0 + step * j
+        f = _stick_margin(sin_chi, cos_chi, e, rho, g, alpha, mu)
+        if f >= 0.0:
+            hi = chi
+            f_hi = f
+            break
+        lo = chi
+        f_lo = f
+    if lo != chi_end:
+        # Illinois (regula falsi, halving the weight of a retained end) on the margin with
+        # exact sin and cos, then the caller's own test: where round-off makes it disagree,
+        # the first bracket end on which it holds
+        side = 0
+        for _ in range(100):
+            if abs(hi - lo) <= 4e-16 * abs(hi) or f_hi == f_lo:
+                break
+            mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+            if not (min(lo, hi) < mid < max(lo, hi)):
+                mid = 0.5 * (lo + hi)
+            f = _stick_margin(math.sin(mid), math.cos(mid), e, rho, g, alpha, mu)
+            if f >= 0.0:
+                hi = mid
+                f_hi = f
+                if side == 1:
+                    f_lo *= 0.5
+                side = 1
+            else:
+                lo = mid
+                f_lo = f
+                if side == -1:
+                    f_hi *= 0.5
+                side = -1
+        probe[2] = y[2]
+        probe[3] = y[3]
+        nudge = 4e-16 * abs(hi)
+        for _ in range(40):
+            probe[0] = hi
+            probe[1] = direction * math.sqrt(max(omega_squared(hi, e, rho, g, alpha), 0.0))
+            if _stick_event(probe, rho, inertia, g, mu, rates) != 0 or hi == chi_end:
+                break
+            hi = hi + direction * nudge if direction * (chi_end - hi) > nudge else chi_end
+            nudge *= 2.0
+    tau = pivot_time(chi0, hi, e, rho, g, alpha)
+    if tau > t_room:
+        return -1.0
+    y[0] = hi
+    y[1] = direction * math.sqrt(max(omega_squared(hi, e, rho, g, alpha), 0.0))
+    return tau
+
+
+@numba.njit(cache=True)
 def _event_holds(found, stop_at_decision):
     return found != 0 and (found != 5 or stop_at_decision)
 
@@ -511,8 +658,10 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     friction or drag took the energy below the barrier, PIVOT_TIMEOUT when ``t_left`` (s) ran
     out (out then holds the state at exactly t_left: sample_records relies on that).
 
-    Adaptive Dormand-Prince 5(4) steps with local error below ODE_TOL of the die's scales.
-    After each accepted step the event predicate (:func:`_contact_event`) is tested at its end
+    A slip below SLIP_TOL sqrt(g rho) at the start counts as sticking. Sticking phases
+    without drag take the exact path (:func:`_stick_closed_form`) where it applies; the rest
+    is integrated by adaptive Dormand-Prince 5(4) steps with a local error below ODE_TOL of
+    the die's scales. After each accepted step the event predicate (:func:`_contact_event`) is tested at its end
     and, when it holds there, on the step's dense output at EVENT_SAMPLES points and by
     bisection to EVENT_TIME_TOL; the step is then taken again, for real, to the event, so that
     the event holds in the state returned (the loop's next pass acts on it).
@@ -541,12 +690,15 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     k = np.zeros((7, 4))
     rates = np.zeros(4)
     state = np.zeros(6)
-    mode = MODE_STICK if slip0 == 0.0 else (1 if slip0 > 0.0 else -1)
+    if abs(slip0) <= SLIP_TOL * math.sqrt(g * rho):
+        y[3] = 0.0
+    mode = MODE_STICK if y[3] == 0.0 else (1 if y[3] > 0.0 else -1)
     t = 0.0
     h = ODE_FIRST_STEP * time_unit
     kind = PIVOT_TIMEOUT
     event = -1  # the event at y, -1 when not known yet
     fresh = False  # k[0] holds the rates at y in the current mode
+    closed_form_last = False  # the last move was a closed-form sticking path
     max_steps = int(t_left / h_max) + 2 * int(1e6)
     for _ in range(max_steps):
         if event < 0:
@@ -573,6 +725,17 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
         if t_left - t <= 0.0:
             kind = PIVOT_TIMEOUT
             break
+        if mode == MODE_STICK and c == 0.0 and not closed_form_last:
+            tau = _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_left - t, trial, rates)
+            if tau >= 0.0:
+                # the next pass finds the event at y; should round-off hide it there, take
+                # an ODE step rather than the same closed form again
+                t += tau
+                event = -1
+                fresh = False
+                closed_form_last = True
+                continue
+        closed_form_last = False
         if not fresh:
             _contact_rates(y, mode, rho, inertia, g, mu, c, k[0])
             fresh = True
