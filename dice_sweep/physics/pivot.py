@@ -32,7 +32,16 @@ import numpy as np
 
 from dice_sweep.physics.flight import SURF_LEFT, SURF_RIGHT, SURF_TABLE, corner_offset
 from dice_sweep.physics.outcome import corner_geometry, decided_side
-from dice_sweep.physics.params import FP_DRAG, FP_G, FP_INERTIA, FP_MU, FP_RHO_MAX, FP_WALL
+from dice_sweep.physics.params import (
+    FP_COM_X,
+    FP_COM_Y,
+    FP_DRAG,
+    FP_G,
+    FP_INERTIA,
+    FP_MU,
+    FP_RHO_MAX,
+    FP_WALL,
+)
 
 PIVOT_LIFTOFF = 0
 PIVOT_FLAT = 1  # the next corner reached the table
@@ -41,7 +50,20 @@ PIVOT_BALANCED = 3  # resting on the corner at the top: unstable equilibrium
 PIVOT_DECIDED = 4  # friction or drag took the energy below the barrier during the pivot
 PIVOT_TIMEOUT = 5  # the time allowed ran out during the pivot
 
-ODE_STEP = 1e-3  # x sqrt(rho/g): Runge-Kutta step of a sliding or drag-damped pivot
+# Sliding or drag-damped pivots (pivot_ode): adaptive Dormand-Prince steps.
+ODE_TOL = 1e-14  # local error per step, relative to 1 rad, sqrt(g/rho), rho and sqrt(g rho)
+ODE_FIRST_STEP = 1e-2  # x sqrt(rho/g): trial first step (the error control adapts it)
+ODE_MAX_STEP = 5e-2  # x sqrt(rho/g): longest step, so that a brief event is still seen
+ODE_MIN_STEP = 1e-13  # x sqrt(rho/g): a step this short is taken whatever its error
+EVENT_SAMPLES = 4  # an accepted step's dense output is tested at 1/4, 1/2, 3/4 for events
+EVENT_TIME_TOL = 1e-13  # x sqrt(rho/g): width of the bisection bracket of an event time
+STICK_SAMPLE = 1e-2  # rad: spacing of the tests for lift-off and slip on a closed-form sticking path
+STICK_TURN_MARGIN = 1e-9  # x g rho: least energy over the top for a closed-form sticking path
+# x sqrt(g rho): a slip this slow at the start of a pivot is round-off of a corner brought to
+# rest, and the pivot starts sticking. A 3e-17 m/s slip left by the impact once started a
+# mu = 1e6 slide whose normal force came out negative (the slide is inconsistent at such mu),
+# a lift-off at the first instant (test_sticking_pivot_ode_matches_the_closed_form).
+SLIP_TOL = 1e-12
 
 BALANCE_TOL = 1e-12  # relative kinetic energy at the top below which the die is balanced
 WALL_SAMPLES = 64
@@ -359,22 +381,79 @@ def _contact_rates(y, mode, rho, inertia, g, mu, c, rates):
     return normal, friction
 
 
+# Dormand-Prince 5(4) (Dormand & Prince 1980), first same as last, with Shampine's quartic
+# dense output: the coefficients of scipy.integrate.RK45.
+DP_A21 = 1.0 / 5.0
+DP_A31, DP_A32 = 3.0 / 40.0, 9.0 / 40.0
+DP_A41, DP_A42, DP_A43 = 44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0
+DP_A51, DP_A52, DP_A53, DP_A54 = 19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0
+DP_A61, DP_A62, DP_A63, DP_A64, DP_A65 = (9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0,
+                                          -5103.0 / 18656.0)
+DP_B1, DP_B3, DP_B4, DP_B5, DP_B6 = 35.0 / 384.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0
+DP_E1, DP_E3, DP_E4, DP_E5, DP_E6, DP_E7 = (-71.0 / 57600.0, 71.0 / 16695.0, -71.0 / 1920.0, 17253.0 / 339200.0,
+                                            -22.0 / 525.0, 1.0 / 40.0)
+DP_P0 = (-8048581381.0 / 2820520608.0, 8663915743.0 / 2820520608.0, -12715105075.0 / 11282082432.0)
+DP_P2 = (131558114200.0 / 32700410799.0, -68118460800.0 / 10900136933.0, 87487479700.0 / 32700410799.0)
+DP_P3 = (-1754552775.0 / 470086768.0, 14199869525.0 / 1410260304.0, -10690763975.0 / 1880347072.0)
+DP_P4 = (127303824393.0 / 49829197408.0, -318862633887.0 / 49829197408.0, 701980252875.0 / 199316789632.0)
+DP_P5 = (-282668133.0 / 205662961.0, 2019193451.0 / 616988883.0, -1453857185.0 / 822651844.0)
+DP_P6 = (40617522.0 / 29380423.0, -110615467.0 / 29380423.0, 69997945.0 / 29380423.0)
+
+
 @numba.njit(cache=True)
-def _rk4_contact(y, h, mode, rho, inertia, g, mu, c, out, k):
+def _dp5_contact(y, h, mode, rho, inertia, g, mu, c, scale, k, tmp, out):
+    """One Dormand-Prince step of length h from y; k[0] must hold the rates at y.
+
+    Writes the fifth-order solution to ``out`` and its rates to k[6] (the next step's k[0]);
+    returns the embedded error estimate in units of the tolerance, max over i of
+    |error_i| / scale[i].
+    """
     for i in range(4):
-        out[i] = y[i]
-    _contact_rates(y, mode, rho, inertia, g, mu, c, k[0])
+        tmp[i] = y[i] + h * DP_A21 * k[0, i]
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[1])
     for i in range(4):
-        out[i] = y[i] + 0.5 * h * k[0, i]
-    _contact_rates(out, mode, rho, inertia, g, mu, c, k[1])
+        tmp[i] = y[i] + h * (DP_A31 * k[0, i] + DP_A32 * k[1, i])
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[2])
     for i in range(4):
-        out[i] = y[i] + 0.5 * h * k[1, i]
-    _contact_rates(out, mode, rho, inertia, g, mu, c, k[2])
+        tmp[i] = y[i] + h * (DP_A41 * k[0, i] + DP_A42 * k[1, i] + DP_A43 * k[2, i])
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[3])
     for i in range(4):
-        out[i] = y[i] + h * k[2, i]
-    _contact_rates(out, mode, rho, inertia, g, mu, c, k[3])
+        tmp[i] = y[i] + h * (DP_A51 * k[0, i] + DP_A52 * k[1, i] + DP_A53 * k[2, i] + DP_A54 * k[3, i])
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[4])
     for i in range(4):
-        out[i] = y[i] + h * (k[0, i] + 2.0 * k[1, i] + 2.0 * k[2, i] + k[3, i]) / 6.0
+        tmp[i] = y[i] + h * (DP_A61 * k[0, i] + DP_A62 * k[1, i] + DP_A63 * k[2, i] + DP_A64 * k[3, i]
+                             + DP_A65 * k[4, i])
+    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[5])
+    for i in range(4):
+        out[i] = y[i] + h * (DP_B1 * k[0, i] + DP_B3 * k[2, i] + DP_B4 * k[3, i] + DP_B5 * k[4, i]
+                             + DP_B6 * k[5, i])
+    _contact_rates(out, mode, rho, inertia, g, mu, c, k[6])
+    err = 0.0
+    for i in range(4):
+        e = h * (DP_E1 * k[0, i] + DP_E3 * k[2, i] + DP_E4 * k[3, i] + DP_E5 * k[4, i] + DP_E6 * k[5, i]
+                 + DP_E7 * k[6, i])
+        err = max(err, abs(e) / scale[i])
+    if math.isnan(err):
+        return math.inf
+    return err
+
+
+@numba.njit(cache=True)
+def _dp5_dense(y, h, k, theta, out):
+    """State a fraction ``theta`` into the last Dormand-Prince step from y (quartic, error
+    of the order of the step's own)."""
+    t2 = theta * theta
+    t3 = t2 * theta
+    t4 = t3 * theta
+    w0 = theta + DP_P0[0] * t2 + DP_P0[1] * t3 + DP_P0[2] * t4
+    w2 = DP_P2[0] * t2 + DP_P2[1] * t3 + DP_P2[2] * t4
+    w3 = DP_P3[0] * t2 + DP_P3[1] * t3 + DP_P3[2] * t4
+    w4 = DP_P4[0] * t2 + DP_P4[1] * t3 + DP_P4[2] * t4
+    w5 = DP_P5[0] * t2 + DP_P5[1] * t3 + DP_P5[2] * t4
+    w6 = DP_P6[0] * t2 + DP_P6[1] * t3 + DP_P6[2] * t4
+    for i in range(4):
+        out[i] = y[i] + h * (w0 * k[0, i] + w2 * k[2, i] + w3 * k[3, i] + w4 * k[4, i] + w5 * k[5, i]
+                             + w6 * k[6, i])
 
 
 @numba.njit(cache=True)
@@ -433,16 +512,159 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
 
 
 @numba.njit(cache=True)
+def _stick_event(y, rho, inertia, g, mu, rates):
+    """Lift-off (3) or slip (4) of a sticking corner without drag in state y, else 0: the
+    tests of :func:`_contact_event`, with the same arithmetic."""
+    normal, friction = _contact_rates(y, MODE_STICK, rho, inertia, g, mu, 0.0, rates)
+    if -g + y[1] * y[1] * rho * math.sin(y[0]) >= 0.0:
+        return 3
+    if not math.isinf(mu) and abs(friction) > mu * normal:
+        return 4
+    return 0
+
+
+@numba.njit(cache=True)
+def _stick_margin(sin_chi, cos_chi, e, rho, g, alpha, mu):
+    """max(released-corner lift, |F| - mu N) (m/s^2) of a sticking corner without drag at
+    energy e: the event of :func:`_stick_event` is due where it is >= 0.
+
+    With omega^2 = 2 (e - g rho s) / (rho^2 (1 + alpha)), s = sin chi, the forces per unit
+    mass are F = cos chi P(s) and N = g alpha / (1 + alpha) + s P(s), with
+    P(s) = 3 g s / (1 + alpha) - 2 e / (rho (1 + alpha)).
+    """
+    w2 = 2.0 * (e - g * rho * sin_chi) / (rho * rho * (1.0 + alpha))
+    lift = w2 * rho * sin_chi - g
+    if math.isinf(mu):
+        return lift
+    p = (3.0 * g * sin_chi - 2.0 * e / rho) / (1.0 + alpha)
+    normal = g * alpha / (1.0 + alpha) + sin_chi * p
+    return max(lift, abs(cos_chi * p) - mu * normal)
+
+
+@numba.njit(cache=True)
+def _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_room, probe, rates):
+    """Move a sticking pivot without drag along its exact path to its next event.
+
+    Without drag a sticking pivot keeps its energy, so omega and the contact forces are
+    known functions of chi (the closed form of :func:`pivot_next`). Lift-off and slip are
+    tested on a grid of chi spaced at most STICK_SAMPLE, the first sign change of
+    :func:`_stick_margin` is located by the Illinois method, and the time is the elliptic
+    integral :func:`pivot_time`. Returns that time (s) with y moved to the event, or -1 with
+    y untouched when the closed form does not apply: omega = 0, energy less than
+    STICK_TURN_MARGIN over the top of the corner (turning points, and pivot_time's domain),
+    a wall within reach, a loaded die that may be
+    decided on the way (its barrier changes with the side below), or more time than
+    ``t_room``. The event itself is left to :func:`_contact_event` in the caller.
+    """
+    omega = y[1]
+    if omega == 0.0:
+        return -1.0
+    half_width = fpar[FP_WALL]
+    if not math.isinf(half_width) and abs(px + y[2]) + 2.0 * fpar[FP_RHO_MAX] >= half_width:
+        return -1.0
+    alpha = inertia / (rho * rho)
+    chi0 = y[0]
+    e = pivot_energy(chi0, omega, rho, g, alpha)
+    fair = fpar[FP_COM_X] == 0.0 and fpar[FP_COM_Y] == 0.0
+    if not fair and e < g * fpar[FP_RHO_MAX]:
+        return -1.0
+    # pivot_time is written for omega^2 > 0 at the top, even where the path stays below it:
+    # a rocking die going down with e < g rho once got a time of 0
+    # (tests/measured/test_tracks.py::test_convention_glitches_and_missing_frames_are_recovered)
+    if e - g * rho <= STICK_TURN_MARGIN * g * rho:
+        return -1.0
+    chi_end = chi_left if omega > 0.0 else chi_right
+    direction = 1.0 if omega > 0.0 else -1.0
+    # Grid up to the flat angle included (a lift-off or slip just before it comes first; at
+    # the flat angle itself _contact_event reports the flat side). sin and cos of the grid
+    # points by rotation: a few ulp of drift, enough to bracket.
+    samples = max(int(abs(chi_end - chi0) / STICK_SAMPLE) + 1, 4)
+    step = (chi_end - chi0) / samples
+    cs = math.cos(step)
+    ss = math.sin(step)
+    sin_chi = math.sin(chi0)
+    cos_chi = math.cos(chi0)
+    lo = chi0
+    hi = chi_end
+    # the caller found no event at chi0; should round-off make the margin say otherwise,
+    # the event is located right after chi0
+    f_lo = min(_stick_margin(sin_chi, cos_chi, e, rho, g, alpha, mu), -1e-300)
+    f_hi = 0.0
+    for j in range(1, samples + 1):
+        sin_chi, cos_chi = sin_chi * cs + cos_chi * ss, cos_chi * cs - sin_chi * ss
+        chi = chi_end if j == samples else chi0 + step * j
+        f = _stick_margin(sin_chi, cos_chi, e, rho, g, alpha, mu)
+        if f >= 0.0:
+            hi = chi
+            f_hi = f
+            break
+        lo = chi
+        f_lo = f
+    if lo != chi_end:
+        # Illinois (regula falsi, halving the weight of a retained end) on the margin with
+        # exact sin and cos, then the caller's own test: where round-off makes it disagree,
+        # the first bracket end on which it holds
+        side = 0
+        for _ in range(100):
+            if abs(hi - lo) <= 4e-16 * abs(hi) or f_hi == f_lo:
+                break
+            mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+            if not (min(lo, hi) < mid < max(lo, hi)):
+                mid = 0.5 * (lo + hi)
+            f = _stick_margin(math.sin(mid), math.cos(mid), e, rho, g, alpha, mu)
+            if f >= 0.0:
+                hi = mid
+                f_hi = f
+                if side == 1:
+                    f_lo *= 0.5
+                side = 1
+            else:
+                lo = mid
+                f_lo = f
+                if side == -1:
+                    f_hi *= 0.5
+                side = -1
+        probe[2] = y[2]
+        probe[3] = y[3]
+        nudge = 4e-16 * abs(hi)
+        for _ in range(40):
+            probe[0] = hi
+            probe[1] = direction * math.sqrt(max(omega_squared(hi, e, rho, g, alpha), 0.0))
+            if _stick_event(probe, rho, inertia, g, mu, rates) != 0 or hi == chi_end:
+                break
+            hi = hi + direction * nudge if direction * (chi_end - hi) > nudge else chi_end
+            nudge *= 2.0
+    tau = pivot_time(chi0, hi, e, rho, g, alpha)
+    if tau > t_room:
+        return -1.0
+    y[0] = hi
+    y[1] = direction * math.sqrt(max(omega_squared(hi, e, rho, g, alpha), 0.0))
+    return tau
+
+
+@numba.njit(cache=True)
+def _event_holds(found, stop_at_decision):
+    return found != 0 and (found != 5 or stop_at_decision)
+
+
+@numba.njit(cache=True)
 def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision, out, hit):
-    """Follow a pivot with Coulomb slip and/or air drag to its next event (ODE, RK4).
+    """Follow a pivot with Coulomb slip and/or air drag to its next event (ODE).
 
     ``slip0`` is the corner's slip velocity (m/s) at the start; ``stop_at_decision`` False
     ignores the decision event (for following a die to rest). Same contract as
     :func:`pivot_next`, plus out[3] = slid distance of the corner (m) and
     out[4] = its slip velocity (m/s) at the event, and two more results: PIVOT_DECIDED when
     friction or drag took the energy below the barrier, PIVOT_TIMEOUT when ``t_left`` (s) ran
-    out (out then holds the state at exactly t_left: sample_records relies on that). Events are
-    located by bisection of the step to about 1e-12 of a step.
+    out (out then holds the state at exactly t_left: sample_records relies on that).
+
+    A slip below SLIP_TOL sqrt(g rho) at the start counts as sticking. Sticking phases
+    without drag take the exact path (:func:`_stick_closed_form`) where it applies; the rest
+    is integrated by adaptive Dormand-Prince 5(4) steps with a local error below ODE_TOL of
+    the die's scales. After each accepted step the event predicate (:func:`_contact_event`) is tested at its end
+    and, when it holds there, on the step's dense output at EVENT_SAMPLES points and by
+    bisection to EVENT_TIME_TOL; the step is then taken again, for real, to the event, so that
+    the event holds in the state returned (the loop's next pass acts on it).
     """
     g = fpar[FP_G]
     mu = fpar[FP_MU]
@@ -450,21 +672,37 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     inertia = fpar[FP_INERTIA]
     rho, _ = corner_geometry(fpar, corner)
     chi_right, chi_left = flat_angles(fpar, n, corner)
-    h_max = ODE_STEP * math.sqrt(rho / g)
+    time_unit = math.sqrt(rho / g)
+    h_max = ODE_MAX_STEP * time_unit
+    h_min = ODE_MIN_STEP * time_unit
+    t_tol = EVENT_TIME_TOL * time_unit
+    scale = np.empty(4)
+    scale[0] = ODE_TOL
+    scale[1] = ODE_TOL / time_unit
+    scale[2] = ODE_TOL * rho
+    scale[3] = ODE_TOL * rho / time_unit
     y = np.zeros(4)
     y[0] = min(max(chi0, chi_right), chi_left)
     y[1] = omega0
     y[3] = slip0
     trial = np.zeros(4)
-    k = np.zeros((4, 4))
+    tmp = np.zeros(4)
+    k = np.zeros((7, 4))
     rates = np.zeros(4)
     state = np.zeros(6)
-    mode = MODE_STICK if slip0 == 0.0 else (1 if slip0 > 0.0 else -1)
+    if abs(slip0) <= SLIP_TOL * math.sqrt(g * rho):
+        y[3] = 0.0
+    mode = MODE_STICK if y[3] == 0.0 else (1 if y[3] > 0.0 else -1)
     t = 0.0
+    h = ODE_FIRST_STEP * time_unit
     kind = PIVOT_TIMEOUT
+    event = -1  # the event at y, -1 when not known yet
+    fresh = False  # k[0] holds the rates at y in the current mode
+    closed_form_last = False  # the last move was a closed-form sticking path
     max_steps = int(t_left / h_max) + 2 * int(1e6)
     for _ in range(max_steps):
-        event = _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+        if event < 0:
+            event = _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
         if event == 4:
             # friction transition at this instant: slide (direction against the needed force)
             normal, friction = _contact_rates(y, MODE_STICK, rho, inertia, g, mu, c, rates)
@@ -475,6 +713,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
                 mode = 1 if y[3] > 0.0 else -1
             else:
                 mode = 1 if friction < 0.0 else -1  # slide against the force sticking needs
+            fresh = False
         elif event == 5 and not stop_at_decision:
             event = 0
         elif event != 0:
@@ -483,30 +722,70 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
         if mode == MODE_STICK and abs(y[1]) < 1e-12 * math.sqrt(g / rho) and abs(math.cos(y[0])) < 1e-9:
             kind = PIVOT_BALANCED
             break
-        h = min(h_max, t_left - t)
-        if h <= 0.0:
+        if t_left - t <= 0.0:
             kind = PIVOT_TIMEOUT
             break
-        _rk4_contact(y, h, mode, rho, inertia, g, mu, c, trial, k)
+        if mode == MODE_STICK and c == 0.0 and not closed_form_last:
+            tau = _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_left - t, trial, rates)
+            if tau >= 0.0:
+                # the next pass finds the event at y; should round-off hide it there, take
+                # an ODE step rather than the same closed form again
+                t += tau
+                event = -1
+                fresh = False
+                closed_form_last = True
+                continue
+        closed_form_last = False
+        if not fresh:
+            _contact_rates(y, mode, rho, inertia, g, mu, c, k[0])
+            fresh = True
+        while True:
+            step = min(h, t_left - t)
+            err = _dp5_contact(y, step, mode, rho, inertia, g, mu, c, scale, k, tmp, trial)
+            if err <= 1.0 or step <= h_min:
+                break
+            h = step * max(0.2, 0.9 * err ** -0.2)
+        # the usual controller: growth at most 5 x, at most h_max; a step cut short by t_left
+        # leaves h as it was
+        grow = 5.0 if err < 1e-4 else min(5.0, 0.9 * err ** -0.2)
+        h = min(max(h if step < h else 0.0, step * grow), h_max)
         probe = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
-        if probe == 5 and not stop_at_decision:
-            probe = 0
-        if probe != 0:
-            # locate the event inside the step by bisection on the step length
+        if _event_holds(probe, stop_at_decision):
+            # first sample of the dense output where the event holds, then bisection
             lo = 0.0
-            hi = h
-            for _ in range(45):
+            hi = step
+            for j in range(1, EVENT_SAMPLES):
+                theta = j / EVENT_SAMPLES
+                _dp5_dense(y, step, k, theta, tmp)
+                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                if _event_holds(found, stop_at_decision):
+                    hi = theta * step
+                    break
+                lo = theta * step
+            while hi - lo > t_tol:
                 mid = 0.5 * (lo + hi)
-                _rk4_contact(y, mid, mode, rho, inertia, g, mu, c, trial, k)
-                found = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
-                if found != 0 and (found != 5 or stop_at_decision):
+                _dp5_dense(y, step, k, mid / step, tmp)
+                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                if _event_holds(found, stop_at_decision):
                     hi = mid
                 else:
                     lo = mid
-            h = hi
-            _rk4_contact(y, h, mode, rho, inertia, g, mu, c, trial, k)
-        y[:] = trial
-        t += h
+            # a real step to hi; where the dense output was off by its own small error and the
+            # event does not hold there yet, move on by doubling amounts (the full step has it)
+            gap = t_tol
+            while True:
+                _dp5_contact(y, hi, mode, rho, inertia, g, mu, c, scale, k, tmp, trial)
+                probe = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                if _event_holds(probe, stop_at_decision) or hi >= step:
+                    break
+                hi = min(hi + gap, step)
+                gap *= 2.0
+            step = hi
+        for i in range(4):
+            y[i] = trial[i]
+            k[0, i] = k[6, i]  # first same as last: the rates at the new y
+        t = t_left if step == t_left - t else t + step
+        event = probe
     out[0] = y[0]
     out[1] = y[1]
     out[2] = t

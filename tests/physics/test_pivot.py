@@ -10,12 +10,14 @@ from tests.physics.conftest import make_params
 from dice_sweep.physics.pivot import (
     PIVOT_FLAT,
     PIVOT_LIFTOFF,
+    PIVOT_TIMEOUT,
     carlson_rf,
     liftoff_factor,
     omega_squared,
     pivot_angle_at,
     pivot_energy,
     pivot_next,
+    pivot_ode,
     pivot_time,
 )
 
@@ -95,3 +97,151 @@ def test_fast_pivot_lifts_off_where_the_corner_would_leave():
     assert kind == PIVOT_LIFTOFF
     assert out[0] < math.pi / 2 and out[2] > 0.0
     assert math.isclose(out[1] ** 2 * R * math.sin(out[0]), G, rel_tol=1e-9)
+
+
+# ---- the contact ODE (pivot_ode): sliding, drag, events ------------------------------------
+
+T_UNIT = math.sqrt(R / G)
+MU = 0.3
+INERTIA = ALPHA * R * R
+
+
+def contact_rates(mode, y, mu=MU, drag=0.0):
+    """Rates of (chi, omega, xp, up), normal force and friction (per unit mass), written
+    again from the equations of docs/physics.md (sticking: mode 0, sliding: +-1)."""
+    chi, w, _, up = y
+    sc, cc = math.sin(chi), math.cos(chi)
+    vx, vy = up - w * R * sc, w * R * cc
+    speed = math.hypot(vx, vy)
+    dx, dy = -drag * speed * vx, -drag * speed * vy
+    if mode == 0:
+        dw = (R * cc * (dy - G) - R * sc * dx) / (INERTIA + R * R)
+        normal = G - dy + R * (cc * dw - sc * w * w)
+        return [w, dw, 0.0, 0.0], normal, -R * (sc * dw + cc * w * w) - dx
+    lever = cc + mode * mu * sc
+    normal = (G - dy - R * w * w * sc) / (1 + R * R / INERTIA * cc * lever)
+    dw = -R / INERTIA * normal * lever
+    return [w, dw, up, -mode * mu * normal + dx + R * (sc * dw + cc * w * w)], normal, -mode * mu * normal
+
+
+def reference_pivot(chi0, w0, slip0, mu=MU, drag=0.0):
+    """The pivot to its flat side or lift-off by scipy's DOP853 at rtol 1e-13, phase by phase
+    with the friction transitions of pivot_ode. Returns (time, state, 'flat' or 'lift')."""
+    from scipy.integrate import solve_ivp
+
+    y, t = np.array([chi0, w0, 0.0, slip0], float), 0.0
+    mode = 0 if slip0 == 0.0 else int(math.copysign(1, slip0))
+    for _ in range(20):
+        def flat(_, y):
+            return (y[0] - math.pi / 4) * (3 * math.pi / 4 - y[0])
+
+        if mode == 0:
+            def change(_, y):  # slip starts
+                _, normal, friction = contact_rates(0, y, mu, drag)
+                return abs(friction) - mu * normal
+
+            def lift(_, y):  # a released corner would leave
+                chi, w = y[0], y[1]
+                return w * w * R * math.sin(chi) - G - drag * R * abs(w) * w * R * math.cos(chi)
+        else:
+            def change(_, y, mode=mode):  # slip stops (not the round-off of a slip starting at 0)
+                return mode * y[3] + 1e-15
+
+            def lift(_, y, mode=mode):
+                return -contact_rates(mode, y, mu, drag)[1]
+        for event in (flat, change, lift):
+            event.terminal = True
+        sol = solve_ivp(lambda _, y, mode=mode: contact_rates(mode, y, mu, drag)[0], (0.0, 1.0), y,
+                        method="DOP853", rtol=1e-13, atol=1e-16, events=(flat, change, lift))
+        tau, which = min((te[0], i) for i, te in enumerate(sol.t_events) if te.size)
+        y, t = sol.y_events[which][0].copy(), t + tau
+        if which != 1:
+            return t, y, ("flat", "", "lift")[which]
+        if mode == 0:
+            mode = 1 if contact_rates(0, y, mu, drag)[2] < 0 else -1
+        else:
+            y[3] = 0.0
+            _, normal, friction = contact_rates(0, y, mu, drag)
+            mode = 0 if abs(friction) <= mu * normal else -mode
+    raise AssertionError("no end in 20 phases")
+
+
+# (chi0, omega0 / sqrt(g/R), slip0 m/s): a slide that stops, sticks and slides again before
+# the flat side; one that slides all the way; one that slips backwards first; one off the top.
+SLIDING_CASES = [(3 * math.pi / 4 - 0.01, -0.7, 0.1), (3 * math.pi / 4 - 0.01, -0.7, 0.3),
+                 (3 * math.pi / 4 - 0.2, -0.3, -0.05), (math.pi / 2, 0.3, 0.2)]
+
+
+@pytest.mark.parametrize("drag", [0.0, 0.5])
+@pytest.mark.parametrize("chi0, w0, slip0", SLIDING_CASES)
+def test_sliding_pivot_ode_matches_a_tight_scipy_reference(chi0, w0, slip0, drag):
+    """Slip, stick, slip again and the flat side, with and without drag: the event time to
+    1e-10 sqrt(R/g) and the state to 1e-10 of its scales (measured: about 1e-13)."""
+    fpar, _ = make_params(sides=4, radius=R, model="rigid", beta_t=0.0, friction=MU, air_drag=drag)
+    w0 *= 1.0 / T_UNIT
+    t_ref, y_ref, end = reference_pivot(chi0, w0, slip0, drag=drag)
+    out = np.zeros(5)
+    hit = np.zeros(2, np.int64)
+    kind = pivot_ode(fpar, 4, 0, 0.0, chi0, w0, slip0, 10.0, False, out, hit)
+    assert kind == {"flat": PIVOT_FLAT, "lift": PIVOT_LIFTOFF}[end]
+    assert abs(out[2] - t_ref) < 1e-10 * T_UNIT
+    assert abs(out[0] - y_ref[0]) < 1e-10
+    assert abs(out[1] - y_ref[1]) < 1e-10 / T_UNIT
+    assert abs(out[3] - y_ref[2]) < 1e-10 * R
+    assert abs(out[4] - y_ref[3]) < 1e-10 * R / T_UNIT
+
+
+def contact_energy(chi, w, up):
+    vx, vy = up - w * R * math.sin(chi), w * R * math.cos(chi)
+    return 0.5 * (vx * vx + vy * vy) + 0.5 * INERTIA * w * w + G * R * math.sin(chi)
+
+
+@pytest.mark.parametrize("drag", [0.0, 0.5])
+def test_pivot_ode_energy_never_increases_and_timeouts_stop_on_time(drag):
+    """Sampled at 200 times through a slide-stick-slide pivot (pivot_ode stopped by t_left,
+    as sample_records does), the energy never increases beyond round-off and the time
+    returned is t_left exactly."""
+    fpar, _ = make_params(sides=4, radius=R, model="rigid", beta_t=0.0, friction=MU, air_drag=drag)
+    chi0, w0, slip0 = 3 * math.pi / 4 - 0.01, -0.7 / T_UNIT, 0.1
+    out = np.zeros(5)
+    hit = np.zeros(2, np.int64)
+    assert pivot_ode(fpar, 4, 0, 0.0, chi0, w0, slip0, 10.0, False, out, hit) == PIVOT_FLAT
+    energy = []
+    for tau in np.linspace(0.0, out[2], 201)[1:-1]:
+        assert pivot_ode(fpar, 4, 0, 0.0, chi0, w0, slip0, tau, False, out, hit) == PIVOT_TIMEOUT
+        assert out[2] == tau
+        energy.append(contact_energy(out[0], out[1], out[4]))
+    energy = np.array(energy)
+    assert np.all(np.diff(energy) <= 1e-13 * energy[:-1])
+    assert energy[-1] < energy[0] * (1 - 1e-3)  # friction did take some
+
+
+@pytest.mark.parametrize("mu", [math.inf, 0.5, 2.0])
+def test_closed_form_sticking_path_equals_the_ode(mu):
+    """Drag-free sticking pivots take the exact path (closed form, events located in chi); a
+    drag of 1e-300 sends the same pivots through the Runge-Kutta steps instead. Same event,
+    same corner, time and state to 1e-11 of their scales, over random starts that include
+    slip onsets, lift-offs and rocking dice below the top (turning points)."""
+    rng = np.random.default_rng(7)
+    kinds = set()
+    for _ in range(60):
+        chi0 = rng.uniform(math.pi / 4, 3 * math.pi / 4)
+        w0 = rng.uniform(-2.0, 2.0) / T_UNIT
+        results = []
+        for drag in (0.0, 1e-300):
+            fpar, _ = make_params(sides=4, radius=R, model="rigid", beta_t=0.0, friction=mu, air_drag=drag)
+            out = np.zeros(5)
+            hit = np.zeros(2, np.int64)
+            kind = pivot_ode(fpar, 4, 0, 0.0, chi0, w0, 0.0, 10.0, False, out, hit)
+            results.append((kind, tuple(hit), out.copy()))
+        (kind_cf, hit_cf, cf), (kind_ode, hit_ode, ode) = results
+        assert kind_cf == kind_ode
+        if kind_cf == PIVOT_FLAT:
+            assert hit_cf == hit_ode
+        kinds.add(kind_cf)
+        assert abs(cf[2] - ode[2]) < 1e-11 * T_UNIT
+        assert abs(cf[0] - ode[0]) < 1e-11
+        assert abs(cf[1] - ode[1]) < 1e-11 / T_UNIT
+        assert abs(cf[3] - ode[3]) < 1e-11 * R
+        assert abs(cf[4] - ode[4]) < 1e-11 * R / T_UNIT
+    assert PIVOT_FLAT in kinds and PIVOT_LIFTOFF in kinds
