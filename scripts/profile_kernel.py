@@ -13,6 +13,9 @@ grid). For each, one core, best of --repeat runs of every timed part:
 * fixed overhead: ``roll_batch`` on dice lying flat at rest, decided before any event (the
   per-roll allocation and set-up, one outcome check, no search or impact).
 
+Times are CPU times of the process (``time.process_time``), the best of --repeat runs: on a
+machine shared with other jobs, wall time also counts the time the process waits for a core.
+
 The replays run the kernel's own functions on the states recorded by ``roll_one`` (every
 segment's start state is recorded); each replay loop is a numba function of this script.
 The parts are timed separately, so they need not add up exactly to the batch; "rest" is the
@@ -169,9 +172,9 @@ def best_time(fn, *args, repeat):
     fn(*args)  # compile or warm up
     best = math.inf
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         fn(*args)
-        best = min(best, time.perf_counter() - t0)
+        best = min(best, time.process_time() - t0)
     return best
 
 
