@@ -205,22 +205,35 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
 
 
 @numba.njit(cache=True)
-def _search_free(s0, fpar, n, n_surf, tau_max, tol, min_step, contact_speed, hit, out):
-    """Drag-free contact search: the steps of :func:`_scan` from the closed-form flight.
+def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, phi0, vx0, vy0, omega):
+    """Drag-free contact search from the state (x0, y0, phi0, vx0, vy0, omega): the steps of
+    :func:`_scan` from the closed-form flight.
 
     The same arithmetic as ``_scan`` on ``flight_state`` (so the same steps, bit for bit;
     tests/physics/test_flight_search.py checks it), written as one loop over local variables:
-    no array traffic or reference counting per step, and the sine and cosine of phi only on
-    steps that visit the corners (not while the centre of mass is still far from every
-    surface). This loop is most of a roll's time (docs/profile.md).
+    no array traffic per step, and the sine and cosine of phi only on steps that visit the
+    corners (not while the centre of mass is still far from every surface). The state comes
+    in and goes out as scalars: every array argument of a numba function that calls others
+    costs a reference count up and down per call. This loop is most of a roll's time
+    (docs/profile.md).
+
+    Returns
+    -------
+    tau : float
+        As :func:`next_contact`.
+    surf, corner : int
+        The contact (-1, -1 when none).
+    x, y, phi, vy : float
+        The state at the contact or where the search stopped (vx and omega do not change).
     """
     g = fpar[FP_G]
     half_width = fpar[FP_WALL]
     rho_max = fpar[FP_RHO_MAX]
-    x0, y0, phi0, vx0, vy0, omega = s0[0], s0[1], s0[2], s0[3], s0[4], s0[5]
     x, y, phi, vy = x0, y0, phi0, vy0
     tau = 0.0
     result = STALLED
+    hit_surf = -1
+    hit_corner = -1
     for _ in range(MAX_SEARCH_STEPS):
         step = math.inf
         best_corner = -1
@@ -251,8 +264,7 @@ def _search_free(s0, fpar, n, n_surf, tau_max, tol, min_step, contact_speed, hit
                 if f <= tol:
                     if fp < -contact_speed:
                         if best_corner < 0 or fp < best_rate:
-                            hit[0] = surf
-                            hit[1] = k
+                            hit_surf = surf
                             best_corner = k
                             best_rate = fp
                     elif m2 > 0.0:
@@ -262,6 +274,7 @@ def _search_free(s0, fpar, n, n_surf, tau_max, tol, min_step, contact_speed, hit
                 else:
                     step = min(step, safe_step(f, fp, m2))
         if best_corner >= 0:
+            hit_corner = best_corner
             result = tau
             break
         if tau + step > tau_max:
@@ -273,13 +286,7 @@ def _search_free(s0, fpar, n, n_surf, tau_max, tol, min_step, contact_speed, hit
         y = y0 + vy0 * tau - 0.5 * g * tau * tau
         phi = phi0 + omega * tau
         vy = vy0 - g * tau
-    out[0] = x
-    out[1] = y
-    out[2] = phi
-    out[3] = vx0
-    out[4] = vy
-    out[5] = omega
-    return result
+    return result, hit_surf, hit_corner, x, y, phi, vy
 
 
 @numba.njit(cache=True)
@@ -317,7 +324,15 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     c = fpar[FP_DRAG]
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
     if c == 0.0:
-        return _search_free(s0, fpar, n, n_surf, tau_max, tol, min_step, contact_speed, hit, out)
+        tau, surf, corner, out[0], out[1], out[2], out[4] = search_free(
+            fpar, n, n_surf, tau_max, tol, min_step, contact_speed, s0[0], s0[1], s0[2], s0[3], s0[4], s0[5]
+        )
+        out[3] = s0[3]
+        out[5] = s0[5]
+        if corner >= 0:
+            hit[0] = surf
+            hit[1] = corner
+        return tau
     for i in range(6):
         out[i] = s0[i]
     tau = 0.0

@@ -22,6 +22,7 @@ from dice_sweep.physics.flight import (
     advance_flight,
     corner_offset,
     next_contact,
+    search_free,
     surface_frame,
 )
 from dice_sweep.physics.impact import (
@@ -272,6 +273,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     contact_speed = CONTACT_SPEED * math.sqrt(g * scale)
     stick_speed = math.sqrt(2.0 * g * scale * STICK_HEIGHT)
     smooth_pivot = math.isinf(fpar[FP_MU]) and fpar[FP_DRAG] == 0.0
+    drag_free = fpar[FP_DRAG] == 0.0
+    n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
     for i in range(out.shape[0]):
         out[i] = 0.0
     hit[0] = 0
@@ -295,13 +298,27 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     for _ in range(ipar[IP_MAX_EVENTS]):
         came_from_pivot = pivoting
         if not pivoting:
-            tau = next_contact(s, fpar, ipar, t_max - t, tol, min_step, contact_speed, hit, after)
+            if drag_free:
+                # next_contact's own drag-free search, called with the state as scalars
+                tau, surf, corner_hit, x, y, phi, vy = search_free(
+                    fpar, n, n_surf, t_max - t, tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5]
+                )
+            else:
+                tau = next_contact(s, fpar, ipar, t_max - t, tol, min_step, contact_speed, hit, after)
             if tau == NO_CONTACT:
                 return _stopped(decided, STATUS_T_MAX, t_decided, t_max, nrec)
             if tau == STALLED:
                 return _stopped(decided, STATUS_STALLED, t_decided, t, nrec)
-            for i in range(6):
-                s[i] = after[i]
+            if drag_free:
+                hit[0] = surf
+                hit[1] = corner_hit
+                s[0] = x
+                s[1] = y
+                s[2] = phi
+                s[4] = vy
+            else:
+                for i in range(6):
+                    s[i] = after[i]
             t += tau
         else:
             out[3] = 0.0
