@@ -274,6 +274,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     stick_speed = math.sqrt(2.0 * g * scale * STICK_HEIGHT)
     smooth_pivot = math.isinf(fpar[FP_MU]) and fpar[FP_DRAG] == 0.0
     drag_free = fpar[FP_DRAG] == 0.0
+    decide_bound = fpar[FP_G] * fpar[FP_RHO_MAX] * (1.0 - DECISION_MARGIN)  # as in decided_side
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
     for i in range(out.shape[0]):
         out[i] = 0.0
@@ -348,7 +349,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         chatter = chatter + 1 if same_corner else 0
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
-        u_n = _impact(s, fpar, ipar, surf, corner, counts)
+        u_n = resolve_impact(s, fpar, ipar, surf, corner, counts)  # _impact, one call fewer
+        counts[C_IMPACTS] += 1
+        if surf != SURF_TABLE:
+            counts[C_WALL] += 1
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
             # Lying flat on a side, both corners down: the die slides (finite friction) or
@@ -390,7 +394,9 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             counts[C_PIVOTS] += 1
         energy = specific_energy(s, fpar)
         if decided < 0:
-            decided = decided_side(s, fpar, n)
+            # decided_side's own first test, made here: most impacts leave the die above it,
+            # and the call (two array arguments) is then skipped
+            decided = decided_side(s, fpar, n) if energy < decide_bound else -1
             t_decided = t if decided >= 0 else math.nan
         if decided >= 0 and (not keep_going or energy - fpar[FP_G] * rest_height(fpar, n, decided) < REST_ENERGY * fpar[FP_G] * fpar[FP_RHO_MAX]):
             if keep_going:
