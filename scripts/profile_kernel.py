@@ -1,10 +1,11 @@
 """Where a roll's time goes in the event kernel (paper law, no drag): a breakdown per roll.
 
 Two cases: fig08's config at 128 x 128 and the Table I die at 64 x 64 (scripts/bench_kernel.py's
-grid). For each, one core, best of --repeat runs of every timed part:
+grid). For each case, on one core, these parts are timed:
 
 * batch: ``roll_batch`` on the whole grid (the public API);
-* contact search: ``next_contact`` replayed from every recorded start of a flight;
+* contact search: the drag-free search (``search_free``, what ``next_contact`` runs without
+  drag) replayed from every recorded start of a flight;
 * impact law: ``resolve_impact`` replayed on every recorded pre-impact state (the contact
   states the search found and the states at the end of pivots that land a corner);
 * outcome checks: what the roll loop does with a state after each impact (``_flat_side`` on
@@ -13,19 +14,21 @@ grid). For each, one core, best of --repeat runs of every timed part:
 * fixed overhead: ``roll_batch`` on dice lying flat at rest, decided before any event (the
   per-roll allocation and set-up, one outcome check, no search or impact).
 
-Times are CPU times of the process (``time.process_time``), the best of --repeat runs: on a
-machine shared with other jobs, wall time also counts the time the process waits for a core.
+Times are CPU times of the process (``time.process_time``; on a machine shared with other
+jobs, wall time also counts the time the process waits for a core), the best of --repeat
+rounds in which every part runs once in turn, so that all parts see the same load.
 
 The replays run the kernel's own functions on the states recorded by ``roll_one`` (every
 segment's start state is recorded); each replay loop is a numba function of this script.
 The parts are timed separately, so they need not add up exactly to the batch; "rest" is the
 batch minus their sum (the roll loop's own bookkeeping and the records).
 
-Counts come from the same replays: search steps per contact (the number of conservative
-advancement steps, counted by a copy of the drag-free search loop that calls the kernel's
-``_scan``; a test checks that the copy finds the same contacts bitwise), split into steps
-taken while the centre of mass is farther than rho_max from the table (one bound, no
-trigonometry) and steps over the corners.
+Counts come from the same replays: search steps per contact search (the number of
+conservative advancement steps, counted by a copy of the drag-free search loop built on the
+kernel's ``_scan``, the loop that tests/physics/test_flight_search.py shows the kernel's
+search matches bit for bit), split into steps taken while the centre of mass is farther than
+rho_max (1 + 1e-6) from the table (one bound, no trigonometry) and steps over the corners.
+The replays carry their own loop overhead, which is why "rest" can come out negative.
 
     python scripts/profile_kernel.py [--repeat 7] [--write]
 
@@ -104,18 +107,26 @@ def count_search_steps(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hi
 
 @numba.njit
 def replay_search(starts, fpar, ipar, t_left, tol, min_step, contact_speed, pre, hits):
-    """next_contact from every flight start; contact states into ``pre``, (surf, corner) into
-    ``hits`` (-1 where no contact); returns the number of contacts."""
-    hit = np.zeros(2, np.int64)
-    out = np.empty(6)
+    """The contact search from every flight start, called as ``_roll_event`` calls it
+    (``search_free`` without drag); contact states into ``pre``, (surf, corner) into ``hits``
+    (-1 where no contact); returns the number of contacts."""
+    n = ipar[IP_N]
+    n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
     found = 0
     for i in range(starts.shape[0]):
-        tau = flight.next_contact(starts[i], fpar, ipar, t_left[i], tol, min_step, contact_speed, hit, out)
-        for j in range(6):
-            pre[i, j] = out[j]
+        s = starts[i]
+        tau, surf, corner, x, y, phi, vy = flight.search_free(
+            fpar, n, n_surf, t_left[i], tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5]
+        )
+        pre[i, 0] = x
+        pre[i, 1] = y
+        pre[i, 2] = phi
+        pre[i, 3] = s[3]
+        pre[i, 4] = vy
+        pre[i, 5] = s[5]
         if tau >= 0.0:
-            hits[i, 0] = hit[0]
-            hits[i, 1] = hit[1]
+            hits[i, 0] = surf
+            hits[i, 1] = corner
             found += 1
         else:
             hits[i, 0] = -1
@@ -142,13 +153,16 @@ def replay_impacts(pre, hits, fpar, ipar, post, u_n):
 
 @numba.njit
 def replay_outcome(post, hits, fpar, n, stick_speed):
-    """The checks ``_roll_event`` makes after every impact."""
+    """The checks ``_roll_event`` makes after every impact, as it makes them."""
     acc = 0.0
+    decide_bound = fpar[FP_G] * fpar[FP_RHO_MAX] * (1.0 - outcome.DECISION_MARGIN)
     for i in range(post.shape[0]):
         if hits[i, 0] == flight.SURF_TABLE:
             acc += kernel._flat_side(post[i], fpar, n, stick_speed)
-        acc += impact.specific_energy(post[i], fpar)
-        acc += outcome.decided_side(post[i], fpar, n)
+        energy = impact.specific_energy(post[i], fpar)
+        acc += energy
+        if energy < decide_bound:
+            acc += outcome.decided_side(post[i], fpar, n)
     return acc
 
 
@@ -166,16 +180,6 @@ def replay_pivots(pivots, fpar, n, kinds, pre, hits):
         kernel._set_pivot_state(pre[i], fpar, pivots[i, 1] + out[3], out[0], out[1], corner)
         hits[i, 0] = hit[0]
         hits[i, 1] = hit[1]
-
-
-def best_time(fn, *args, repeat):
-    fn(*args)  # compile or warm up
-    best = math.inf
-    for _ in range(repeat):
-        t0 = time.process_time()
-        fn(*args)
-        best = min(best, time.process_time() - t0)
-    return best
 
 
 def record_rolls(fpar, ipar, states):
@@ -203,49 +207,55 @@ def profile_case(config, num, repeat):
     states = grid_states(cfg, num)
     rolls = states.shape[0]
     tol, min_step, contact_speed, stick_speed = tolerances(fpar)
-
     out_o = np.empty(rolls, np.int8)
     out_s = np.empty(rolls, np.uint8)
     out_c = np.empty((rolls, len(COUNT_COLUMNS)), np.int32)
     out_t = np.empty(rolls)
-    t_batch = best_time(roll_batch, fpar, ipar, states, out_o, out_s, out_c, out_t, repeat=repeat)
+    roll_batch(fpar, ipar, states, out_o, out_s, out_c, out_t)
     impacts_per_roll = out_c[:, 0].mean()
     pivots_per_roll = out_c[:, 3].mean()
 
+    # the inputs of every part, recorded once (each replay below also runs once here)
     flights, t_left, pivots = record_rolls(fpar, ipar, states)
     pre = np.empty_like(flights)
     hits = np.empty((len(flights), 2), np.int64)
-    t_search = best_time(replay_search, flights, fpar, ipar, t_left, tol, min_step, contact_speed, pre, hits, repeat=repeat)
+    replay_search(flights, fpar, ipar, t_left, tol, min_step, contact_speed, pre, hits)
     steps = np.empty(len(flights), np.int64)
     far = np.empty(len(flights), np.int64)
     replay_counts(flights, fpar, ipar, t_left, tol, min_step, contact_speed, steps, far)
-
     kinds = np.empty(len(pivots), np.int64)
     piv_pre = np.empty((len(pivots), 6))
     piv_hits = np.empty((len(pivots), 2), np.int64)
-    t_pivot = best_time(replay_pivots, pivots, fpar, n, kinds, piv_pre, piv_hits, repeat=repeat) if len(pivots) else 0.0
-
+    replay_pivots(pivots, fpar, n, kinds, piv_pre, piv_hits)
     landed = kinds == pivot.PIVOT_FLAT
     imp_pre = np.ascontiguousarray(np.concatenate((pre[hits[:, 0] >= 0], piv_pre[landed])))
     imp_hits = np.ascontiguousarray(np.concatenate((hits[hits[:, 0] >= 0], piv_hits[landed])))
     post = np.empty_like(imp_pre)
     u_n = np.empty(len(imp_pre))
-    t_impact = best_time(replay_impacts, imp_pre, imp_hits, fpar, ipar, post, u_n, repeat=repeat)
-    t_outcome = best_time(replay_outcome, post, imp_hits, fpar, n, stick_speed, repeat=repeat)
-
+    replay_impacts(imp_pre, imp_hits, fpar, ipar, post, u_n)
     rest = np.zeros((rolls, 6))
-    rest[:, 1] = outcome_rest_height(fpar, n)
+    rest[:, 1] = outcome.rest_height(fpar, n, n - 1)
     rest[:, 2] = -0.5 * math.pi + math.pi / n  # side n-1 flat on the table
-    t_fixed = best_time(roll_batch, fpar, ipar, rest, out_o, out_s, out_c, out_t, repeat=repeat)
+
+    # every part timed in turn, repeat rounds, so that all see the same machine load
+    timed = {
+        "batch": (roll_batch, (fpar, ipar, states, out_o, out_s, out_c, out_t)),
+        "contact search": (replay_search, (flights, fpar, ipar, t_left, tol, min_step, contact_speed, pre, hits)),
+        "impact law": (replay_impacts, (imp_pre, imp_hits, fpar, ipar, post, u_n)),
+        "outcome checks": (replay_outcome, (post, imp_hits, fpar, n, stick_speed)),
+        "pivots (closed form)": (replay_pivots, (pivots, fpar, n, kinds, piv_pre, piv_hits)),
+        "fixed overhead": (roll_batch, (fpar, ipar, rest, out_o, out_s, out_c, out_t)),
+    }
+    best = {name: math.inf for name in timed}
+    for _ in range(repeat):
+        for name, (fn, args) in timed.items():
+            t0 = time.process_time()
+            fn(*args)
+            best[name] = min(best[name], time.process_time() - t0)
+    t_batch = best.pop("batch")
 
     ns = 1e9 / rolls
-    parts = {
-        "contact search": t_search * ns,
-        "impact law": t_impact * ns,
-        "outcome checks": t_outcome * ns,
-        "pivots (closed form)": t_pivot * ns,
-        "fixed overhead": t_fixed * ns,
-    }
+    parts = {name: seconds * ns for name, seconds in best.items()}
     return {
         "rolls": rolls,
         "batch": t_batch * ns,
@@ -262,10 +272,6 @@ def profile_case(config, num, repeat):
         "pivot_kinds": {name: int(np.count_nonzero(kinds == code)) / rolls for name, code in (
             ("lift-off", pivot.PIVOT_LIFTOFF), ("next corner", pivot.PIVOT_FLAT))},
     }
-
-
-def outcome_rest_height(fpar, n):
-    return outcome.rest_height(fpar, n, n - 1)
 
 
 def markdown(results, repeat):
@@ -311,8 +317,68 @@ compare parts within one run.
 """
 
 
-# Findings and changes, written from the tables above (kept here so --write reproduces them).
-NOTES = ""
+def derived(results):
+    """Figures computed from the tables: cost per search step and the impacts' share."""
+    lines = []
+    for (name, _, _), r in zip(CASES, results):
+        per_step = r["parts"]["contact search"] / (r["flights"] * r["steps"])
+        share = r["parts"]["impact law"] / r["batch"]
+        lines.append(
+            f"- {name}: {per_step:.0f} ns per search step; the impact law is {share:.0%} of a roll "
+            f"({r['batch'] / r['impacts']:,.0f} ns of batch time per impact, "
+            f"{r['parts']['impact law'] / r['impacts']:,.0f} ns of it in the law itself)."
+        )
+    return "\n".join(lines)
+
+
+# Findings and changes (kept here so that --write reproduces the whole page).
+NOTES = """
+## Findings
+
+- The contact search is most of a roll. Each step is short (one sine and cosine, then for
+  each corner a gap, its rate, a square root and a division) but the steps form one chain:
+  each step's length is needed before the next state, its angle and its trigonometry can be
+  computed, so a step costs its full latency. The number of steps is set by the conservative
+  advancement itself (the quadratic lower bound and the Newton steps from the safe side);
+  changing it changes the contact times in their last bits, so it was left alone (see below).
+- Reference counting. An array argument of a numba function costs a call to ``NRT_incref``
+  and one to ``NRT_decref`` (atomic) per call, unless numba's pruning pass removes them,
+  which it did here only in functions with no call or division that can raise (seen in the
+  generated assembly; a 5-array function took about 30 ns per call against 7 ns without).
+  The search made such a call per step (``_scan``, three arrays) below one per flight
+  (``next_contact``, five arrays).
+- The outcome checks after each impact cost more than the impact law: ``decided_side`` took
+  the side below the centre of mass (a float modulo) and both corners' geometry (two
+  ``atan2`` calls, their angles unused) even when the energy was far above any barrier, and
+  ``_flat_side`` took the side below on every table impact.
+- Per roll, ``roll_one`` and ``_roll_event`` allocated four small arrays.
+
+## Changes (all bit for bit: outcome, status, counts, t_decided and the segment records)
+
+1. The drag-free search is one loop over local variables (``flight.search_free``), called by
+   the roll loop with the state as scalars; no trigonometry on steps taken while the centre
+   of mass is still farther than rho_max from the table.
+   ``tests/physics/test_flight_search.py`` checks it against the old ``_scan`` loop bit for
+   bit.
+2. ``decided_side`` first compares the energy with g rho_max (1 - margin), never below its
+   barrier, and the roll loop makes that comparison before calling it; ``_flat_side``
+   counts the corners that are level and still before it looks for the side below
+   (``tests/physics/test_outcome_checks.py``).
+3. ``roll_batch`` and ``sample_batch`` allocate a roll's scratch arrays once.
+
+Tried and dropped (no gain above the noise of interleaved runs): folding the table's normal
+(0, 1) into the search's expressions; passing the contact's sine and cosine on to
+``_flat_side``; ``error_model="numpy"`` (it lets numba prune the reference counts of leaf
+functions only, and would turn a division by zero into a NaN instead of an error).
+
+## Left
+
+- Fewer search steps (not tried): any other step sequence, e.g. Newton on the gap itself
+  from the bound's root, moves every contact time by round-off and so every result in its
+  last bits (and some chaotic pixels); that is a change of results, to be made on purpose.
+- ``pivot_next`` (``pivot.py``, not changed here) recomputes the pivot corner's geometry
+  and flat angles (``atan2`` calls) on every pivot; a per-corner table would remove them.
+"""
 
 
 def main():
@@ -326,9 +392,10 @@ def main():
         results.append(profile_case(config, num, args.repeat))
     table = markdown(results, args.repeat)
     print(table)
+    print(derived(results))
     if args.write:
         method = __doc__.split("\n\n", 1)[1].rsplit("\n\n    python", 1)[0]
-        text = DOC_HEAD.format(method=method) + "\n## Breakdown\n\n" + table + "\n"
+        text = DOC_HEAD.format(method=method) + "\n## Breakdown\n\n" + table + "\n\n" + derived(results) + "\n"
         text += NOTES
         (ROOT / "docs" / "profile.md").write_text(text)
 
