@@ -205,6 +205,91 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
 
 
 @numba.njit(cache=True)
+def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, phi0, vx0, vy0, omega):
+    """Drag-free contact search from the state (x0, y0, phi0, vx0, vy0, omega): the steps of
+    :func:`_scan` from the closed-form flight.
+
+    The same arithmetic as ``_scan`` on ``flight_state`` (so the same steps, bit for bit;
+    tests/physics/test_flight_search.py checks it), written as one loop over local variables:
+    no array traffic per step, and the sine and cosine of phi only on steps that visit the
+    corners (not while the centre of mass is still far from every surface). The state comes
+    in and goes out as scalars: every array argument of a numba function that calls others
+    costs a reference count up and down per call. This loop is most of a roll's time
+    (docs/profile.md).
+
+    Returns
+    -------
+    tau : float
+        As :func:`next_contact`.
+    surf, corner : int
+        The contact (-1, -1 when none).
+    x, y, phi, vy : float
+        The state at the contact or where the search stopped (vx and omega do not change).
+    """
+    g = fpar[FP_G]
+    half_width = fpar[FP_WALL]
+    rho_max = fpar[FP_RHO_MAX]
+    x, y, phi, vy = x0, y0, phi0, vy0
+    tau = 0.0
+    result = STALLED
+    hit_surf = -1
+    hit_corner = -1
+    for _ in range(MAX_SEARCH_STEPS):
+        step = math.inf
+        best_corner = -1
+        best_rate = 0.0
+        trig = False
+        cphi = 0.0
+        sphi = 0.0
+        for surf in range(n_surf):
+            nx, ny, d = surface_frame(surf, half_width)
+            h = d + nx * x + ny * y
+            hv = nx * vx0 + ny * vy
+            accel = g if surf == SURF_TABLE else 0.0
+            if h - rho_max > 1e-6 * rho_max:
+                step = min(step, safe_step(h - rho_max, hv, accel))
+                continue
+            if not trig:
+                cphi = math.cos(phi)
+                sphi = math.sin(phi)
+                trig = True
+            for k in range(n):
+                base = FP_CORNERS + CORNER_STRIDE * k
+                rho = fpar[base]
+                rx = rho * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
+                ry = rho * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
+                f = h + nx * rx + ny * ry
+                fp = hv + omega * (ny * rx - nx * ry)
+                m2 = accel + rho * omega * omega
+                if f <= tol:
+                    if fp < -contact_speed:
+                        if best_corner < 0 or fp < best_rate:
+                            hit_surf = surf
+                            best_corner = k
+                            best_rate = fp
+                    elif m2 > 0.0:
+                        step = min(step, max(2.0 * max(fp, 0.0) / m2, min_step))
+                    else:
+                        step = min(step, math.inf if fp > 0.0 else min_step)
+                else:
+                    step = min(step, safe_step(f, fp, m2))
+        if best_corner >= 0:
+            hit_corner = best_corner
+            result = tau
+            break
+        if tau + step > tau_max:
+            result = NO_CONTACT
+            break
+        tau += step
+        # flight_state(s0, tau, g, out), term by term
+        x = x0 + vx0 * tau
+        y = y0 + vy0 * tau - 0.5 * g * tau * tau
+        phi = phi0 + omega * tau
+        vy = vy0 - g * tau
+    return result, hit_surf, hit_corner, x, y, phi, vy
+
+
+@numba.njit(cache=True)
 def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out):
     """Time of the next corner contact in flight from state ``s0``.
 
@@ -238,18 +323,19 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     g = fpar[FP_G]
     c = fpar[FP_DRAG]
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
-    out[:] = s0
-    tau = 0.0
     if c == 0.0:
-        for _ in range(MAX_SEARCH_STEPS):
-            step = _scan(out, fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit)
-            if step < 0.0:
-                return tau
-            if tau + step > tau_max:
-                return NO_CONTACT
-            tau += step
-            flight_state(s0, tau, g, out)
-        return STALLED
+        tau, surf, corner, out[0], out[1], out[2], out[4] = search_free(
+            fpar, n, n_surf, tau_max, tol, min_step, contact_speed, s0[0], s0[1], s0[2], s0[3], s0[4], s0[5]
+        )
+        out[3] = s0[3]
+        out[5] = s0[5]
+        if corner >= 0:
+            hit[0] = surf
+            hit[1] = corner
+        return tau
+    for i in range(6):
+        out[i] = s0[i]
+    tau = 0.0
     work = np.empty((2, 6))
     trial = np.empty(6)
     h_ode = DRAG_MAX_STEP

@@ -5,7 +5,7 @@ import math
 import numba
 
 from dice_sweep.physics.impact import specific_energy
-from dice_sweep.physics.params import CORNER_STRIDE, FP_COM_X, FP_COM_Y, FP_CORNERS, FP_G
+from dice_sweep.physics.params import CORNER_STRIDE, FP_COM_X, FP_COM_Y, FP_CORNERS, FP_G, FP_RHO_MAX
 
 # E < g rho decides the side; a die balanced on a corner sits at E = g rho up to round-off,
 # which must not decide it (test_balanced_on_a_corner_is_reported_not_guessed caught that).
@@ -43,13 +43,17 @@ def decided_side(s, fpar, n):
     is below g min(rho_a, rho_b) (with a relative margin, so that a die balanced on a corner,
     at exactly that energy, is not decided by round-off).
     """
+    energy = specific_energy(s, fpar)
+    # Most calls come at energies above g rho_max, where no side can be decided: answer those
+    # without the side (a float modulo) and its corners. Exact: min(rho_a, rho_b) <= rho_max and
+    # rounding is monotone, so this bound is never below the barrier computed next.
+    if not energy < fpar[FP_G] * fpar[FP_RHO_MAX] * (1.0 - DECISION_MARGIN):
+        return -1
     k = side_below(s[2], fpar, n)
-    rho_a, _ = corner_geometry(fpar, k)
-    rho_b, _ = corner_geometry(fpar, (k + 1) % n)
+    rho_a = fpar[FP_CORNERS + CORNER_STRIDE * k]
+    rho_b = fpar[FP_CORNERS + CORNER_STRIDE * ((k + 1) % n)]
     barrier = fpar[FP_G] * min(rho_a, rho_b) * (1.0 - DECISION_MARGIN)
-    return k if specific_energy(s, fpar) < barrier else -1
-
-
+    return k if energy < barrier else -1
 
 
 @numba.njit(cache=True)
