@@ -41,7 +41,7 @@ def kernel_fingerprint() -> tuple[str, str]:
 
 def _compute_tile(job, index: int):
     # a module-level function: dask pickles it by reference, so workers need dice_sweep installed
-    return index, job.compute_tile(index)
+    return index, job.compute_encoded_tile(index)
 
 
 def _scheduler_address(scheduler: str) -> str:

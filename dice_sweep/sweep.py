@@ -28,7 +28,7 @@ from tqdm import tqdm
 from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.physics import COUNT_COLUMNS, STATE_COLUMNS, STATUS_NAMES, pack_params, roll_batch
-from dice_sweep.storage import SweepAxis, SweepFile, SweepHeader, rolls_to_maps
+from dice_sweep.storage import SweepAxis, SweepFile, SweepHeader, chunk_shape, encode_tile, rolls_to_maps
 
 DEFAULT_TILE_SHAPE = (64, 64)
 
@@ -247,6 +247,12 @@ class SweepJob:
         shape = (rows.stop - rows.start, cols.stop - cols.start)
         return rolls_to_maps(COUNT_COLUMNS, shape, *self.roll(states))
 
+    def compute_encoded_tile(self, index: int):
+        """:meth:`compute_tile`, its maps already compressed as the file stores them
+        (``storage.encode_tile``): what workers send to the process writing the file."""
+        maps = self.compute_tile(index)
+        return encode_tile(maps, chunk_shape(self.tiles.tile_shape, self.tiles.shape), COUNT_COLUMNS)
+
     def warm_up(self) -> None:
         """Compile (or load) the kernel in this process with a one-roll batch."""
         self.roll(self.base_state[np.newaxis, :].copy())
@@ -282,7 +288,7 @@ def _init_worker(job: SweepJob, parent_pid: int) -> None:
 
 
 def _compute_in_worker(index: int) -> tuple[int, dict[str, np.ndarray]]:
-    return index, _worker_job.compute_tile(index)
+    return index, _worker_job.compute_encoded_tile(index)
 
 
 def _process_context():
@@ -343,7 +349,7 @@ def _tile_results(job: SweepJob, todo: Sequence[int], workers: int, stop: _StopR
     left to finish their tiles.
     """
     if workers == 1 or len(todo) <= 1:
-        yield ((index, job.compute_tile(index)) for index in todo if not stop.requested)
+        yield ((index, job.compute_encoded_tile(index)) for index in todo if not stop.requested)
         return
     executor = ProcessPoolExecutor(
         max_workers=min(workers, len(todo)),

@@ -2,11 +2,11 @@
 for N machines from measured costs (issue 7; results in docs/scaling.md). Public API only.
 
 Measures, on this machine:
-1. the cost of one 64 x 64 tile (``SweepJob.compute_tile``) for fig08 (n = 4) and fig10
+1. the cost of one 64 x 64 tile (``SweepJob.compute_encoded_tile``: rolls and compression) for fig08 (n = 4) and fig10
    (n = 20, a zoom of the chaotic region): the unit of work of every executor;
-2. what the writing process pays per tile: pickling the maps there and back (what crosses
-   the network) and writing them to HDF5 (timed as ``merge_parts`` of a whole file, which
-   reads and writes every tile);
+2. what the writing process pays per tile: pickling a worker's result there and back (what
+   crosses the network: the maps already compressed by the worker) and writing it to HDF5
+   (chunks copied as they are, the tile recorded, a flush);
 3. fig08 at --sweep-num with the local executor and with dask (a LocalCluster of 2
    single-threaded worker processes, started before the clock), both in this process, so
    the difference is dask's per-task overhead;
@@ -23,7 +23,8 @@ import time
 from pathlib import Path
 
 from dice_sweep.config import load_config
-from dice_sweep.sweep import SweepJob, merge_parts, run_sweep
+from dice_sweep.storage import SweepFile, chunk_shape, encode_tile
+from dice_sweep.sweep import SweepJob, run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 TILE = (64, 64)
@@ -38,22 +39,33 @@ def tile_cost(config_name, num):
     picks = [round(i * (job.tiles.count - 1) / (SAMPLE_TILES - 1)) for i in range(SAMPLE_TILES)]
     start = time.perf_counter()
     for index in picks:
-        job.compute_tile(index)
+        job.compute_encoded_tile(index)
     seconds = (time.perf_counter() - start) / len(picks)
     return seconds, TILE[0] * TILE[1] / seconds, job
 
 
 def client_cost(job, path, tmp):
-    """(pickle round trip s, pickled bytes, HDF5 read+write s) per tile."""
-    maps = job.compute_tile(0)
+    """(pickle round trip s, pickled bytes, HDF5 write s) per tile of what workers send.
+
+    The write is timed over every tile of the finished file ``path``, encoded as a worker
+    encodes it and written into a new file as ``run_sweep`` writes it (data, record, flush).
+    """
+    encoded = job.compute_encoded_tile(0)
     start = time.perf_counter()
     for _ in range(50):
-        blob = pickle.dumps(maps, protocol=pickle.HIGHEST_PROTOCOL)
+        blob = pickle.dumps((0, encoded), protocol=pickle.HIGHEST_PROTOCOL)
         pickle.loads(blob)
     pickled = (time.perf_counter() - start) / 50
-    start = time.perf_counter()
-    merge_parts([path], Path(tmp) / "copy.h5")
-    written = (time.perf_counter() - start) / job.tiles.count
+    tiles = job.tiles
+    chunk = chunk_shape(tiles.tile_shape, tiles.shape)
+    with SweepFile.open(path) as source:
+        header = source.header
+        blocks = [encode_tile(source.read_block(*tiles.bounds(i)), chunk, header.count_columns) for i in range(tiles.count)]
+    with SweepFile.create(Path(tmp) / "copy.h5", header, tiles.count) as target:
+        start = time.perf_counter()
+        for index, block in enumerate(blocks):
+            target.write_tile(index, *tiles.bounds(index), block)
+        written = (time.perf_counter() - start) / tiles.count
     return pickled, len(blob), written
 
 
@@ -89,8 +101,8 @@ def main():
     n_tiles = SweepJob.from_config(fig08, TILE).tiles.count
     per_tile_client = pickled + written
     lines += ["", f"Per tile, in the process that writes the file: pickle round trip {pickled * 1e3:.2f} ms "
-              f"({size / 1e3:.0f} kB pickled), HDF5 read and write {written * 1e3:.2f} ms (merge of the "
-              f"{n_tiles}-tile file): **{per_tile_client * 1e3:.2f} ms**, so one client can take in at most "
+              f"({size / 1e3:.1f} kB pickled), HDF5 write {written * 1e3:.2f} ms (mean over the "
+              f"{n_tiles} tiles of the file): **{per_tile_client * 1e3:.2f} ms**, so one client can take in at most "
               f"**{TILE[0] * TILE[1] / per_tile_client:,.0f} rolls/s** ({1 / per_tile_client:,.0f} tiles/s). "
               f"A 1 Gbit/s link carries {125e6 / size:,.0f} such tiles/s.", "",
               f"| fig08 at {num} x {num} ({n_tiles} tiles), in this process | wall time (s) | rolls/s |",
