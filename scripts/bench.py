@@ -92,32 +92,36 @@ def main():
     lines.append(f"| pymunk (Chipmunk2D), rigid law as above, dt = 1e-4 s (per CPU second) | {munk:,.1f} | - | - |")
     lines += ["", f"Event kernel (rigid) / pymunk, same physics, per core: **{rigid_rate / munk:,.0f} x**.", ""]
     with tempfile.TemporaryDirectory() as tmp:
-        sweep_times = {}
-        for workers in (1, 2):
-            out = Path(tmp) / f"w{workers}.h5"
-            sweep_times[workers] = timed(CLI + ["sweep", str(fig08), "-o", str(out), "--workers", str(workers), "--quiet",
-                                                "--set", f"grid.x.num={args.sweep_num}", "--set", f"grid.y.num={args.sweep_num}"])
+        # best of 3, the worker counts alternating, so that both see the same machine
+        sweep_times = {1: float("inf"), 2: float("inf")}
+        for attempt in range(3):
+            for workers in (1, 2):
+                out = Path(tmp) / f"w{workers}-{attempt}.h5"
+                seconds = timed(CLI + ["sweep", str(fig08), "-o", str(out), "--workers", str(workers), "--quiet",
+                                       "--set", f"grid.x.num={args.sweep_num}", "--set", f"grid.y.num={args.sweep_num}"])
+                sweep_times[workers] = min(sweep_times[workers], seconds)
         # the fixed start: the same command on a 2 x 2 grid (4 rolls)
         start_cost = min(timed(CLI + ["sweep", str(fig08), "-o", str(Path(tmp) / f"tiny{i}.h5"), "--workers", "1", "--quiet",
                                       "--set", "grid.x.num=2", "--set", "grid.y.num=2"]) for i in range(3))
         big = load_config(fig08, [f"grid.x.num={args.sweep_num}", f"grid.y.num={args.sweep_num}"])
-        in_process = {}
-        for workers in (1, 2):
-            begin = time.perf_counter()
-            run_sweep(big, Path(tmp) / f"in{workers}.h5", workers=workers, progress=False)
-            in_process[workers] = time.perf_counter() - begin
+        in_process = {1: float("inf"), 2: float("inf")}
+        for attempt in range(3):
+            for workers in (1, 2):
+                begin = time.perf_counter()
+                run_sweep(big, Path(tmp) / f"in{workers}-{attempt}.h5", workers=workers, progress=False)
+                in_process[workers] = min(in_process[workers], time.perf_counter() - begin)
         env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "numba-cache"))
         cold = timed(CLI + ["roll", str(ROOT / "configs" / "table1.toml")], env=env)
         warm = min(timed(CLI + ["roll", str(ROOT / "configs" / "table1.toml")], env=env) for _ in range(3))
     lines += [f"| command | wall time (s) |", "|---|---|",
-              f"| `dice-sweep sweep configs/fig08.toml` at {args.sweep_num} x {args.sweep_num}, 1 worker | {sweep_times[1]:.2f} |",
+              f"| `dice-sweep sweep configs/fig08.toml` at {args.sweep_num} x {args.sweep_num}, 1 worker (best of 3) | {sweep_times[1]:.2f} |",
               f"| same, 2 workers | {sweep_times[2]:.2f} (speed-up {sweep_times[1] / sweep_times[2]:.2f}) |",
               f"| `dice-sweep roll configs/table1.toml`, empty numba cache (cold) | {cold:.2f} |",
               f"| same, cache filled (warm, best of 3) | {warm:.2f} |", "",
               "Amdahl split of the CLI sweeps:", "",
               "| part | 1 worker (s) | 2 workers (s) | speed-up |", "|---|---|---|---|",
               f"| fixed start: the same `sweep` command on a 2 x 2 grid (best of 3) | {start_cost:.2f} | {start_cost:.2f} | 1 |",
-              f"| the sweep itself: `run_sweep` in a warm process ({args.sweep_num} x {args.sweep_num}) | "
+              f"| the sweep itself: `run_sweep` in a warm process ({args.sweep_num} x {args.sweep_num}, best of 3) | "
               f"{in_process[1]:.2f} | {in_process[2]:.2f} | {in_process[1] / in_process[2]:.2f} |"]
     table = "\n".join(lines)
     print(table)
