@@ -12,12 +12,13 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 from dice_sweep.cli import main  # noqa: E402
-from dice_sweep.config import load_config, parse_config  # noqa: E402
+from dice_sweep.config import load_config  # noqa: E402
 from dice_sweep.distributed import _check_workers, kernel_fingerprint  # noqa: E402
 from dice_sweep.errors import DiceSweepError  # noqa: E402
 from dice_sweep.storage import read_sweep  # noqa: E402
 from dice_sweep.sweep import SweepInterrupted, run_sweep  # noqa: E402
-from tests.test_sweep import CONFIG_TEXT, TILE, assert_same_maps, stop_after  # noqa: E402
+from tests.test_sweep import TILE, assert_same_maps, stop_after  # noqa: E402
+from tests.test_sweep import cfg, reference  # noqa: E402, F401  (the same module-scoped fixtures)
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -26,18 +27,6 @@ ROOT = Path(__file__).resolve().parent.parent
 def cluster():
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
         yield local
-
-
-@pytest.fixture(scope="module")
-def cfg():
-    return parse_config(CONFIG_TEXT, "test.toml")
-
-
-@pytest.fixture(scope="module")
-def reference(cfg, tmp_path_factory):
-    path = tmp_path_factory.mktemp("reference") / "reference.h5"
-    run_sweep(cfg, path, workers=1, tile_shape=TILE, progress=False)
-    return read_sweep(path)
 
 
 def test_dask_cluster_gives_the_local_maps_bitwise(cluster, tmp_path):
