@@ -174,6 +174,20 @@ def test_bad_shard_is_one_line_error(calls, shard):
     assert calls == []
 
 
+@pytest.mark.parametrize(
+    ("options", "fragments"),
+    [
+        (["--executor", "spark"], ["--executor 'spark'", "local, dask"]),
+        (["--scheduler", "tcp://h:8786"], ["--scheduler", "only with --executor dask"]),
+        (["--executor", "dask", "--scheduler", "tcp://h:8786", "--workers", "2"], ["--workers", "not with --scheduler"]),
+    ],
+)
+def test_bad_executor_options_are_one_line_errors_and_write_nothing(tmp_path, options, fragments):
+    out = tmp_path / "x.h5"
+    assert_user_error(run("sweep", DEMO, "-o", out, *options), *fragments)
+    assert not out.exists()
+
+
 @pytest.mark.parametrize("workers", ["0", "-3"])
 def test_bad_workers_is_one_line_error(calls, workers):
     assert_user_error(run("sweep", DEMO, "-o", "x.h5", "--workers", workers), "--workers", "[1, inf)")
