@@ -407,6 +407,22 @@ class SweepFile:
         self._datasets["done_tiles"][tile_index] = 1
         self._h5.flush()
 
+    def read_tile(self, rows: slice, cols: slice) -> EncodedTile | dict[str, np.ndarray]:
+        """The tile at (rows, cols) as its stored chunks when they can be copied as they are
+        (:class:`EncodedTile`, no decompression: what merge copies), else as arrays."""
+        if not self._direct or (rows.start % self._chunk[0], cols.start % self._chunk[1]) != (0, 0):
+            return self.read_block(rows, cols)
+        chunks = {}
+        for name in _map_datasets(self.header.count_columns):
+            try:
+                filter_mask, chunk_bytes = self._datasets[name].id.read_direct_chunk((rows.start, cols.start))
+            except (OSError, RuntimeError, ValueError):  # a chunk never written
+                return self.read_block(rows, cols)
+            if filter_mask != 0:  # a filter was skipped when this chunk was written
+                return self.read_block(rows, cols)
+            chunks[name] = chunk_bytes
+        return EncodedTile((rows.stop - rows.start, cols.stop - cols.start), chunks)
+
     def read_block(self, rows: slice, cols: slice) -> dict[str, np.ndarray]:
         """Stored arrays of a block, by dataset path (the form :meth:`write_tile` takes)."""
         names = _map_datasets(self.header.count_columns)

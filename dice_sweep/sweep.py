@@ -707,7 +707,7 @@ def merge_parts(part_paths: Sequence, out_path) -> SweepSummary:
             for part in parts:
                 for index in tiles.shard_tiles(part.header.shard):
                     bounds = tiles.bounds(index)
-                    merged.write_tile(index, *bounds, part.read_block(*bounds))
+                    merged.write_tile(index, *bounds, part.read_tile(*bounds))  # chunks copied as they are
             merged.mark_complete()
     n_rolls = tiles.shape[0] * tiles.shape[1]
     seconds = time.perf_counter() - started

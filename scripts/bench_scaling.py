@@ -24,11 +24,14 @@ from pathlib import Path
 
 from dice_sweep.config import load_config
 from dice_sweep.storage import SweepFile, chunk_shape, encode_tile
-from dice_sweep.sweep import SweepJob, run_sweep
+from dice_sweep.sweep import SweepJob, merge_parts, run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 TILE = (64, 64)
 SAMPLE_TILES = 12  # tiles timed per config, spread over the grid
+# dask's scheduler: "Each task suffers about 1ms of overhead" (https://distributed.dask.org,
+# Motivation): a floor for dask runs that this machine cannot measure at cluster scale
+DASK_TASK_SECONDS = 1e-3
 
 
 def tile_cost(config_name, num):
@@ -94,6 +97,9 @@ def main():
         local = {w: sweep_seconds(fig08, Path(tmp) / f"local{w}.h5", workers=w) for w in (1, 2)}
         pickled, size, written = client_cost(SweepJob.from_config(fig08, TILE), Path(tmp) / "local1.h5", tmp)
         start = time.perf_counter()
+        merge_parts([Path(tmp) / "local1.h5"], Path(tmp) / "merged.h5")  # a one-part merge: every tile copied
+        merged = (time.perf_counter() - start) / SweepJob.from_config(fig08, TILE).tiles.count
+        start = time.perf_counter()
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
             cluster_start = time.perf_counter() - start
             first = sweep_seconds(fig08, Path(tmp) / "dask1.h5", executor="dask", scheduler=cluster.scheduler_address)
@@ -104,7 +110,8 @@ def main():
               f"({size / 1e3:.1f} kB pickled), HDF5 write {written * 1e3:.2f} ms (mean over the "
               f"{n_tiles} tiles of the file): **{per_tile_client * 1e3:.2f} ms**, so one client can take in at most "
               f"**{TILE[0] * TILE[1] / per_tile_client:,.0f} rolls/s** ({1 / per_tile_client:,.0f} tiles/s). "
-              f"A 1 Gbit/s link carries {125e6 / size:,.0f} such tiles/s.", "",
+              f"A 1 Gbit/s link carries {125e6 / size:,.0f} such tiles/s. `merge` copies "
+              f"{merged * 1e3:.2f} ms per tile.", "",
               f"| fig08 at {num} x {num} ({n_tiles} tiles), in this process | wall time (s) | rolls/s |",
               "|---|---|---|"]
     rolls = num * num
@@ -120,19 +127,27 @@ def main():
     big = 16384
     lines += [f"Estimate for fig10 at {big} x {big} ({big * big / 1e6:.0f} M rolls, "
               f"{big * big // (TILE[0] * TILE[1]):,} tiles) on N machines of C cores, from the fig10 "
-              "tile cost above: T = tiles x max(tile cost / (N C), client cost per tile) + start-up "
-              "(not included):", "",
-              "| machines x cores | compute-bound time | client-bound floor | estimate |", "|---|---|---|---|"]
+              "tile cost above: T = tiles x max(tile cost / (N C), floor per tile) + start-up (not "
+              "included). With one dask cluster the floor is the client's cost per tile or the "
+              f"scheduler's (about {DASK_TASK_SECONDS * 1e3:g} ms per task, from dask's documentation), "
+              "whichever is larger; with one shard per machine (SLURM array, `make -j`) every machine "
+              "writes its own file, so the client floor is shared N ways, and the merge adds the "
+              "tiles x its cost per tile:", "",
+              "| machines x cores | compute-bound | dask floor | estimate, one dask cluster | estimate, N shards + merge |",
+              "|---|---|---|---|---|"]
     tiles_big = big * big // (TILE[0] * TILE[1])
     tile_s = costs["fig10.toml"][0]
+    client_floor = tiles_big * per_tile_client
+    dask_floor = tiles_big * max(per_tile_client, DASK_TASK_SECONDS)
     for machines, cores in ((1, 2), (4, 8), (16, 32), (64, 32), (256, 32)):
         compute = tiles_big * tile_s / (machines * cores)
-        floor = tiles_big * per_tile_client
-        lines.append(f"| {machines} x {cores} | {compute:,.0f} s | {floor:,.0f} s | {max(compute, floor):,.0f} s |")
-    crossover = tile_s / per_tile_client
-    lines += ["", f"The client stops keeping up at about **{crossover:,.0f} cores** (fig10 tile cost / client "
-              "cost per tile); beyond that, split the sweep with --shard so that several clients write, "
-              "and merge the parts."]
+        lines.append(f"| {machines} x {cores} | {compute:,.0f} s | {dask_floor:,.0f} s | "
+                     f"{max(compute, dask_floor):,.0f} s | {max(compute, client_floor / machines) + tiles_big * merged:,.0f} s |")
+    lines += ["", f"One writing client keeps up with about **{tile_s / per_tile_client:,.0f} cores** on fig10's tiles, "
+              f"one dask scheduler with about **{tile_s / max(per_tile_client, DASK_TASK_SECONDS):,.0f}** "
+              "(tile cost / floor per tile); beyond that, split the sweep with --shard so that several "
+              "clients (or clusters) write, and merge the parts. Configs with cheaper tiles reach the "
+              "floor with fewer cores (fig08's are about 100 times cheaper)."]
     table = "\n".join(lines)
     print(table)
     if args.write:

@@ -11,6 +11,7 @@ from dice_sweep.errors import DiceSweepError
 from dice_sweep.storage import (
     COUNT_MAX,
     NOT_COMPUTED,
+    EncodedTile,
     SweepAxis,
     SweepFile,
     SweepHeader,
@@ -197,3 +198,16 @@ def test_encoded_tile_falls_back_to_arrays_when_the_file_is_filtered_otherwise(t
     data = read_sweep(tmp_path / "other.h5")
     write_file(tmp_path / "arrays.h5")
     assert data.t_decided.tobytes() == read_sweep(tmp_path / "arrays.h5").t_decided.tobytes()
+
+
+def test_read_tile_gives_the_stored_chunks_that_decode_to_the_block(tmp_path):
+    write_file(tmp_path / "a.h5", tiles=[0, 1, 2])  # tile 3 never written
+    with SweepFile.open(tmp_path / "a.h5") as sweep_file:
+        for index in (0, 1, 2):
+            tile = sweep_file.read_tile(*TILE_BOUNDS[index])
+            assert isinstance(tile, EncodedTile)
+            decoded = decode_tile(tile, TILE, COUNT_COLUMNS)
+            block = sweep_file.read_block(*TILE_BOUNDS[index])
+            assert all(decoded[name].tobytes() == block[name].tobytes() for name in block)
+        missing = sweep_file.read_tile(*TILE_BOUNDS[3])  # no chunk: the arrays (fill values)
+        assert isinstance(missing, dict) and (missing["status"] == NOT_COMPUTED).all()
