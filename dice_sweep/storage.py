@@ -208,8 +208,10 @@ class EncodedTile:
     """A tile's maps as the bytes of their HDF5 chunks (shuffle, then deflate), by dataset.
 
     Made by :func:`encode_tile` where the tile is computed (a worker), so that the process
-    writing the file only copies bytes (``write_direct_chunk``) instead of compressing: that
-    took 3.1 of the 3.5 ms per 64 x 64 tile the writer spent (scripts/bench_scaling.py).
+    writing the file only copies bytes (``write_direct_chunk``) instead of compressing. In a
+    development timing (h5py, fig08's 64 x 64 tiles, with the per-tile flush) a tile cost the
+    writer 3.1 ms as arrays and 0.4 ms as copied chunks; scripts/bench_scaling.py measures
+    the current path.
     """
 
     shape: tuple[int, int]
@@ -395,22 +397,25 @@ class SweepFile:
         The data go first and the bookkeeping last, then a flush: a kill at any point leaves
         the tile either recorded with its data or not recorded at all.
         """
-        if isinstance(maps, EncodedTile):
-            if self._direct and (rows.start % self._chunk[0], cols.start % self._chunk[1]) == (0, 0):
-                for name, chunk_bytes in maps.chunks.items():
-                    self._datasets[name].id.write_direct_chunk((rows.start, cols.start), chunk_bytes)
-                maps = {}
-            else:
+        if isinstance(maps, EncodedTile) and self._copies_chunks(rows, cols):
+            for name, chunk_bytes in maps.chunks.items():
+                self._datasets[name].id.write_direct_chunk((rows.start, cols.start), chunk_bytes)
+        else:
+            if isinstance(maps, EncodedTile):
                 maps = decode_tile(maps, self._chunk, self.header.count_columns)
-        for name, values in maps.items():
-            self._datasets[name][rows, cols] = values
+            for name, values in maps.items():
+                self._datasets[name][rows, cols] = values
         self._datasets["done_tiles"][tile_index] = 1
         self._h5.flush()
+
+    def _copies_chunks(self, rows: slice, cols: slice) -> bool:
+        """True if the block at (rows, cols) is one whole chunk, filtered as encode_tile does."""
+        return self._direct and rows.start % self._chunk[0] == 0 and cols.start % self._chunk[1] == 0
 
     def read_tile(self, rows: slice, cols: slice) -> EncodedTile | dict[str, np.ndarray]:
         """The tile at (rows, cols) as its stored chunks when they can be copied as they are
         (:class:`EncodedTile`, no decompression: what merge copies), else as arrays."""
-        if not self._direct or (rows.start % self._chunk[0], cols.start % self._chunk[1]) != (0, 0):
+        if not self._copies_chunks(rows, cols):
             return self.read_block(rows, cols)
         chunks = {}
         for name in _map_datasets(self.header.count_columns):

@@ -44,7 +44,7 @@ def tile_cost(config_name, num):
     for index in picks:
         job.compute_encoded_tile(index)
     seconds = (time.perf_counter() - start) / len(picks)
-    return seconds, TILE[0] * TILE[1] / seconds, job
+    return seconds, TILE[0] * TILE[1] / seconds
 
 
 def client_cost(job, path, tmp):
@@ -90,21 +90,22 @@ def main():
     lines = ["| tile of 64 x 64 rolls, one core | s per tile | rolls/s |", "|---|---|---|"]
     costs = {}
     for name in ("fig08.toml", "fig10.toml"):
-        seconds, rate, job = tile_cost(name, num)
+        seconds, rate = tile_cost(name, num)
         costs[name] = (seconds, rate)
         lines.append(f"| {name} ({SAMPLE_TILES} tiles spread over its {num} x {num} grid) | {seconds * 1e3:.1f} ms | {rate:,.0f} |")
     with tempfile.TemporaryDirectory() as tmp:
         local = {w: sweep_seconds(fig08, Path(tmp) / f"local{w}.h5", workers=w) for w in (1, 2)}
-        pickled, size, written = client_cost(SweepJob.from_config(fig08, TILE), Path(tmp) / "local1.h5", tmp)
+        job = SweepJob.from_config(fig08, TILE)
+        n_tiles = job.tiles.count
+        pickled, size, written = client_cost(job, Path(tmp) / "local1.h5", tmp)
         start = time.perf_counter()
         merge_parts([Path(tmp) / "local1.h5"], Path(tmp) / "merged.h5")  # a one-part merge: every tile copied
-        merged = (time.perf_counter() - start) / SweepJob.from_config(fig08, TILE).tiles.count
+        merged = (time.perf_counter() - start) / n_tiles
         start = time.perf_counter()
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
             cluster_start = time.perf_counter() - start
             first = sweep_seconds(fig08, Path(tmp) / "dask1.h5", executor="dask", scheduler=cluster.scheduler_address)
             again = sweep_seconds(fig08, Path(tmp) / "dask2.h5", executor="dask", scheduler=cluster.scheduler_address)
-    n_tiles = SweepJob.from_config(fig08, TILE).tiles.count
     per_tile_client = pickled + written
     lines += ["", f"Per tile, in the process that writes the file: pickle round trip {pickled * 1e3:.2f} ms "
               f"({size / 1e3:.1f} kB pickled), HDF5 write {written * 1e3:.2f} ms (mean over the "
