@@ -14,12 +14,13 @@ import ctypes
 import dataclasses
 import multiprocessing
 import os
+import queue
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -375,14 +376,23 @@ def _executor_results(executor: str, scheduler: str | None, job: SweepJob, todo,
 
 
 def _completed(pending: set, stop: _StopRequest) -> Iterator:
-    # Drop each future as it is consumed so that finished tiles are not all kept in memory.
-    while pending and not stop.requested:
-        finished, _ = wait(pending, timeout=_STOP_POLL_SECONDS, return_when=FIRST_COMPLETED)
-        for future in finished:
-            if stop.requested:  # stop at once: tiles computed but not yet written are lost
-                return
-            pending.discard(future)
-            yield future.result()
+    # Each future reports itself to a queue when done. concurrent.futures.wait() on the whole
+    # pending set installs and removes a waiter on every pending future per call: with 256
+    # tiles that cost the parent more CPU than writing them, CPU the workers need.
+    finished = queue.SimpleQueue()
+    remaining = len(pending)
+    for future in pending:
+        future.add_done_callback(finished.put)
+    pending.clear()  # each future is dropped once consumed: finished tiles are not all kept
+    while remaining and not stop.requested:
+        try:
+            future = finished.get(timeout=_STOP_POLL_SECONDS)
+        except queue.Empty:
+            continue
+        if stop.requested:  # stop at once: tiles computed but not yet written are lost
+            return
+        remaining -= 1
+        yield future.result()
 
 
 # --- sweep -------------------------------------------------------------------------------
