@@ -13,6 +13,7 @@ dask is optional: ``pip install 'dice-sweep[dask]'``. Setting up a cluster: docs
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import time
 from collections.abc import Iterator, Sequence
@@ -40,8 +41,35 @@ def kernel_fingerprint() -> tuple[str, str]:
     return __version__, source_digest()
 
 
-def _compute_tile(job, index: int):
-    # a module-level function: dask pickles it by reference, so workers need dice_sweep installed
+_own_fingerprint = functools.cache(kernel_fingerprint)  # per worker process: read once, not per tile
+
+
+class WrongKernel(Exception):
+    """Raised by a task on a worker whose fingerprint is not the client's (one that joined
+    the cluster after the check at the start, or was reinstalled since)."""
+
+    def __init__(self, address: str, theirs: tuple[str, str], mine: tuple[str, str]):
+        super().__init__(address, theirs, mine)
+        self.address, self.theirs, self.mine = address, theirs, mine
+
+
+def _mismatch_message(where: str, address: str, theirs, mine) -> str:
+    return (
+        f"--scheduler {where}: worker {address} runs dice_sweep {theirs[0]} with physics "
+        f"sources {theirs[1][:12]}, this client {mine[0]} with {mine[1][:12]}; install "
+        "the same dice_sweep on every worker (results would not be reproducible)"
+    )
+
+
+def _compute_tile(job, index: int, fingerprint: tuple[str, str]):
+    # A module-level function: dask pickles it by reference, so workers need dice_sweep
+    # installed. Each task checks its worker: the check at the start does not see workers
+    # that join later, and one tile from another kernel would break the bitwise guarantee.
+    theirs = _own_fingerprint()
+    if theirs != fingerprint:
+        import distributed
+
+        raise WrongKernel(distributed.get_worker().address, theirs, fingerprint)
     return index, job.compute_encoded_tile(index)
 
 
@@ -87,11 +115,7 @@ def _check_workers(client, scheduler: str | None) -> int:
     mine = kernel_fingerprint()
     for address, theirs in fingerprints.items():
         if tuple(theirs) != mine:
-            raise DiceSweepError(
-                f"--scheduler {where}: worker {address} runs dice_sweep {theirs[0]} with physics "
-                f"sources {theirs[1][:12]}, this client {mine[0]} with {mine[1][:12]}; install "
-                "the same dice_sweep on every worker (results would not be reproducible)"
-            )
+            raise DiceSweepError(_mismatch_message(where, address, theirs, mine))
     return len(fingerprints)
 
 
@@ -131,8 +155,9 @@ def dask_tile_results(job, todo: Sequence[int], stop, scheduler: str | None = No
     try:
         _check_workers(client, scheduler)
         shared_job = client.scatter(job, broadcast=True)
-        pending.update(client.submit(_compute_tile, shared_job, index, pure=False) for index in todo)
-        yield _completed(distributed, pending, stop)
+        fingerprint = kernel_fingerprint()
+        pending.update(client.submit(_compute_tile, shared_job, index, fingerprint, pure=False) for index in todo)
+        yield _completed(distributed, pending, stop, scheduler or "local cluster")
     finally:
         if pending:
             client.cancel(list(pending))
@@ -141,7 +166,7 @@ def dask_tile_results(job, todo: Sequence[int], stop, scheduler: str | None = No
             cluster.close()
 
 
-def _completed(distributed, pending: set, stop) -> Iterator:
+def _completed(distributed, pending: set, stop, where: str) -> Iterator:
     # as_completed gathers results in the background as tasks finish; distributed.wait on
     # the pending set, then one result() round trip per tile, cost 10 ms per tile
     # (scripts/bench_scaling.py). Polled rather than blocking, so that Ctrl-C acts between
@@ -155,6 +180,17 @@ def _completed(distributed, pending: set, stop) -> Iterator:
         for future, result in batch:
             if stop.requested:  # stop at once: tiles computed but not yet written are lost
                 return
+            if future.status == "error":
+                # next_batch(block=False) hands over a failed task's (type, error, traceback)
+                # as its result instead of raising it (test_a_failing_task_raises_its_error)
+                _raise_task_error(result, where)
             pending.discard(future)
             future.release()
             yield result
+
+
+def _raise_task_error(error_info, where: str):
+    _, error, traceback = error_info
+    if isinstance(error, WrongKernel):
+        raise DiceSweepError(_mismatch_message(where, error.address, error.theirs, error.mine)) from None
+    raise error.with_traceback(traceback)

@@ -144,3 +144,38 @@ def test_scheduler_file_is_accepted(cluster, cfg, reference, tmp_path):
     (tmp_path / "bad.json").write_text("[1, 2]")
     with pytest.raises(DiceSweepError, match="bad.json: not a dask scheduler file"):
         run_sweep(cfg, tmp_path / "g.h5", progress=False, executor="dask", scheduler=str(tmp_path / "bad.json"))
+
+
+def test_a_worker_with_another_kernel_is_refused_by_its_tasks(cluster, cfg, tmp_path, monkeypatch):
+    """A worker that joins after the check at the start (simulated: the check is skipped and
+    the client announces another kernel) fails its first task; the sweep stops with a one-line
+    error naming the worker, and the file is left incomplete, not looking done."""
+    import dice_sweep.distributed as dask_executor
+
+    monkeypatch.setattr(dask_executor, "_check_workers", lambda client, scheduler: 1)
+    monkeypatch.setattr(dask_executor, "kernel_fingerprint", lambda: ("0.0.0", "0" * 64))
+    path = tmp_path / "mixed.h5"
+    with pytest.raises(DiceSweepError, match=r"worker tcp://\S+ runs dice_sweep .* this client 0\.0\.0") as raised:
+        run_sweep(cfg, path, tile_shape=TILE, progress=False, executor="dask", scheduler=cluster.scheduler_address)
+    assert "\n" not in str(raised.value)
+    data = read_sweep(path)
+    assert not data.complete and (data.status == 255).all()  # 255: not computed
+
+
+def test_a_failing_task_raises_its_error(cluster, cfg, tmp_path):
+    """An error inside a task reaches the client as that error (not as a tile to write)."""
+    import dataclasses
+
+    from dice_sweep.distributed import dask_tile_results
+    from dice_sweep.sweep import SweepJob
+
+    broken = dataclasses.replace(SweepJob.from_config(cfg, TILE), fpar=None)  # roll_batch refuses None
+
+    class Running:
+        requested = False
+
+    with dask_tile_results(broken, [0, 1], Running(), scheduler=cluster.scheduler_address) as results:
+        with pytest.raises(Exception) as raised:
+            next(iter(results))
+    assert not isinstance(raised.value, DiceSweepError)
+    assert "fpar" in str(raised.value) or "None" in str(raised.value)
