@@ -26,6 +26,8 @@ from dice_sweep.config import load_config
 from dice_sweep.storage import SweepFile, chunk_shape, encode_tile
 from dice_sweep.sweep import SweepJob, merge_parts, run_sweep
 
+from _docs import publish  # scripts/_docs.py: the script's folder is on sys.path
+
 ROOT = Path(__file__).resolve().parent.parent
 TILE = (64, 64)
 SAMPLE_TILES = 12  # tiles timed per config, spread over the grid
@@ -149,11 +151,7 @@ def main():
               "(tile cost / floor per tile); beyond that, split the sweep with --shard so that several "
               "clients (or clusters) write, and merge the parts. Configs with cheaper tiles reach the "
               "floor with fewer cores (fig08's are about 100 times cheaper)."]
-    table = "\n".join(lines)
-    print(table)
-    if args.write:
-        head = (ROOT / "docs" / "scaling_intro.md").read_text()
-        (ROOT / "docs" / "scaling.md").write_text(head + "\n## Measured here\n\n" + table + "\n")
+    publish("\n".join(lines), "scaling.md", "scaling_intro.md", args.write, heading="## Measured here\n\n")
     return 0
 
 
