@@ -13,14 +13,15 @@ import contextlib
 import ctypes
 import dataclasses
 import multiprocessing
+import multiprocessing.connection
 import os
-import queue
+import pickle
 import signal
 import sys
 import threading
 import time
+import traceback
 from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -261,13 +262,12 @@ class SweepJob:
 
 # --- worker processes --------------------------------------------------------------------
 
-_worker_job: SweepJob | None = None
 _PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 _STOP_POLL_SECONDS = 0.2  # how often the parent looks for Ctrl-C while workers compute
 
 
 def _die_with_parent(parent_pid: int) -> None:
-    # A parent killed by SIGKILL cannot stop its workers, which would wait for work forever;
+    # A parent killed by SIGKILL cannot stop its workers, which would compute for nobody;
     # on Linux the kernel can kill them when the parent goes.
     if not sys.platform.startswith("linux"):
         return
@@ -280,36 +280,10 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def _init_worker(job: SweepJob, parent_pid: int) -> None:
-    # Ctrl-C reaches the whole process group; only the parent handles it (by stopping us).
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _die_with_parent(parent_pid)
-    global _worker_job
-    _worker_job = job
-
-
-def _compute_in_worker(index: int) -> tuple[int, dict[str, np.ndarray]]:
-    return index, _worker_job.compute_encoded_tile(index)
-
-
 def _process_context():
     # fork shares the kernel compiled in the parent; elsewhere (macOS, Windows) spawn is safe.
     method = "fork" if sys.platform.startswith("linux") else "spawn"
     return multiprocessing.get_context(method)
-
-
-def _terminate_workers(executor: ProcessPoolExecutor) -> None:
-    terminate = getattr(executor, "terminate_workers", None)  # Python >= 3.14
-    if terminate is not None:
-        terminate()
-        return
-    # Before 3.14 only the private process table reaches the workers; shutdown() clears it.
-    processes = list((getattr(executor, "_processes", None) or {}).values())
-    for process in processes:
-        process.terminate()
-    executor.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        process.join()
 
 
 class _StopRequest:
@@ -341,30 +315,107 @@ class _StopRequest:
             signal.signal(signal.SIGINT, self._previous)
 
 
+class _WorkerFailed:
+    """What a worker sends instead of a tile when computing it raised."""
+
+    def __init__(self, error: BaseException):
+        self.traceback = traceback.format_exc()
+        try:
+            pickle.dumps(error)
+            self.error = error
+        except Exception:  # an error that cannot cross the pipe is sent as its text
+            self.error = RuntimeError(f"{type(error).__name__}: {error}")
+
+
+def _worker_main(job: SweepJob, todo: Sequence[int], next_slot, results, parent_pid: int) -> None:
+    """A worker process: take the next tile of ``todo`` until none is left, send each one's
+    (index, encoded maps) to the parent on ``results``."""
+    # Ctrl-C reaches the whole process group; only the parent handles it (by stopping us).
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _die_with_parent(parent_pid)
+    try:
+        while True:
+            with next_slot.get_lock():
+                slot = next_slot.value
+                next_slot.value = slot + 1
+            if slot >= len(todo):
+                return
+            results.send((todo[slot], job.compute_encoded_tile(todo[slot])))
+    except BaseException as error:  # noqa: BLE001 - every failure is reported to the parent
+        results.send(_WorkerFailed(error))
+    finally:
+        results.close()
+
+
 @contextlib.contextmanager
 def _tile_results(job: SweepJob, todo: Sequence[int], workers: int, stop: _StopRequest):
     """Yield an iterator of (tile index, maps) in completion order, computed by ``workers``.
 
-    One worker computes in this process. The iterator ends early once ``stop`` is requested.
-    On any exception in the ``with`` body the workers are terminated at once rather than
-    left to finish their tiles.
+    One worker computes in this process. More are forked processes that take tiles from a
+    shared counter and each send their results on a pipe of their own: the parent has no
+    thread of its own to feed, and spends its CPU (which it shares with the workers) only on
+    receiving and writing tiles (concurrent.futures.ProcessPoolExecutor, used before, spent
+    more of it in its threads and queues than the writes took; scripts/bench.py reports the
+    parent's CPU). The iterator ends early once ``stop`` is requested. On any
+    exception in the ``with`` body the workers are terminated at once rather than left to
+    finish their tiles.
     """
     if workers == 1 or len(todo) <= 1:
         yield ((index, job.compute_encoded_tile(index)) for index in todo if not stop.requested)
         return
-    executor = ProcessPoolExecutor(
-        max_workers=min(workers, len(todo)),
-        mp_context=_process_context(),
-        initializer=_init_worker,
-        initargs=(job, os.getpid()),
-    )
+    context = _process_context()
+    next_slot = context.Value("q", 0)
+    processes, pipes = [], []
     try:
-        pending = {executor.submit(_compute_in_worker, index) for index in todo}
-        yield _completed(pending, stop)
+        for _ in range(min(workers, len(todo))):
+            receiving, sending = context.Pipe(duplex=False)
+            process = context.Process(
+                target=_worker_main, args=(job, list(todo), next_slot, sending, os.getpid()), daemon=True
+            )
+            process.start()
+            sending.close()  # the worker's end: once every holder closes it, recv() sees EOF
+            processes.append(process)
+            pipes.append(receiving)
+        yield _received(dict(zip(pipes, processes)), stop)
     except BaseException:
-        _terminate_workers(executor)
+        for process in processes:
+            process.terminate()
         raise
-    executor.shutdown()
+    finally:
+        for process in processes:
+            process.join()
+        for pipe in pipes:
+            pipe.close()
+
+
+def _received(workers: dict, stop: _StopRequest) -> Iterator:
+    """Tiles from the workers' pipes ({pipe: process}) as they arrive, until every worker
+    has closed its pipe or ``stop`` is requested."""
+    while workers and not stop.requested:
+        for pipe in multiprocessing.connection.wait(list(workers), timeout=_STOP_POLL_SECONDS):
+            if stop.requested:  # stop at once: tiles computed but not yet written are lost
+                return
+            try:
+                message = pipe.recv()
+            except EOFError:  # the worker ran out of tiles, or died
+                process = workers.pop(pipe)
+                process.join()
+                if process.exitcode != 0:
+                    raise DiceSweepError(
+                        f"a worker process ended with exit code {process.exitcode} (killed?); "
+                        "the tiles written are kept: run the same command with --resume to finish"
+                    ) from None
+                continue
+            if isinstance(message, _WorkerFailed):
+                raise message.error from _RemoteTraceback(message.traceback)
+            yield message
+
+
+class _RemoteTraceback(Exception):
+    """The traceback of an error raised in a worker process, as its text."""
+
+    def __str__(self) -> str:
+        return "\n" + self.args[0]
 
 
 def _executor_results(executor: str, scheduler: str | None, job: SweepJob, todo, workers, stop):
@@ -373,26 +424,6 @@ def _executor_results(executor: str, scheduler: str | None, job: SweepJob, todo,
 
         return dask_tile_results(job, todo, stop, scheduler=scheduler, workers=workers)
     return _tile_results(job, todo, workers, stop)
-
-
-def _completed(pending: set, stop: _StopRequest) -> Iterator:
-    # Each future reports itself to a queue when done. concurrent.futures.wait() on the whole
-    # pending set installs and removes a waiter on every pending future per call: with 256
-    # tiles that cost the parent more CPU than writing them, CPU the workers need.
-    finished = queue.SimpleQueue()
-    remaining = len(pending)
-    for future in pending:
-        future.add_done_callback(finished.put)
-    pending.clear()  # each future is dropped once consumed: finished tiles are not all kept
-    while remaining and not stop.requested:
-        try:
-            future = finished.get(timeout=_STOP_POLL_SECONDS)
-        except queue.Empty:
-            continue
-        if stop.requested:  # stop at once: tiles computed but not yet written are lost
-            return
-        remaining -= 1
-        yield future.result()
 
 
 # --- sweep -------------------------------------------------------------------------------

@@ -328,6 +328,44 @@ def test_ctrl_c_stops_parent_and_workers_cleanly(cfg, reference, tmp_path):
     assert_resumes_to_reference(cfg, reference, tmp_path / "stopped.h5")
 
 
+def test_an_error_in_a_worker_reaches_the_parent_with_its_traceback(cfg):
+    """A tile that raises in a forked worker raises the same error in the parent, caused by
+    the worker's traceback, instead of a tile to write."""
+    import dataclasses
+
+    from dice_sweep.sweep import SweepJob, _StopRequest, _tile_results
+
+    broken = dataclasses.replace(SweepJob.from_config(cfg, TILE), fpar=None)  # roll_batch refuses None
+    with pytest.raises(Exception) as raised, _StopRequest() as stop:
+        with _tile_results(broken, list(range(N_TILES)), 2, stop) as results:
+            next(iter(results))
+    assert not isinstance(raised.value, DiceSweepError)
+    assert "compute_encoded_tile" in str(raised.value.__cause__)
+
+
+def test_a_killed_worker_stops_the_sweep_with_a_resumable_file(cfg, reference, tmp_path, monkeypatch):
+    """A worker killed mid-sweep (as by the OOM killer) is a one-line error, not a file
+    that looks complete or a hang; --resume finishes the file."""
+    from dice_sweep.sweep import SweepJob
+
+    computed = SweepJob.compute_encoded_tile
+
+    def dies_on_tile_4(self, index):
+        if index == 4:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return computed(self, index)
+
+    monkeypatch.setattr(SweepJob, "compute_encoded_tile", dies_on_tile_4)  # the workers are forked
+    path = tmp_path / "killed_worker.h5"
+    with pytest.raises(DiceSweepError, match="worker process ended with exit code -9.*--resume") as raised:
+        sweep(cfg, path, workers=2)
+    assert "\n" not in str(raised.value)
+    assert not read_sweep(path).complete
+    monkeypatch.undo()
+    sweep(cfg, path, workers=2, resume=True)
+    assert_same_maps(read_sweep(path), reference)
+
+
 def test_summary_describes_the_run():
     summary = SweepSummary("out.h5", (7, 10), (1, 2), 30, 30, 1.5, True)
     assert summary.describe() == "out.h5 (7 x 10, shard 1/2): 30 rolls in 1.5 s (20 rolls/s), complete"
