@@ -8,7 +8,7 @@ import pytest
 
 from dice_sweep.physics.flight import corner_offset
 from dice_sweep.physics.impact import specific_energy
-from dice_sweep.physics.kernel import _flat_side, shift_reference
+from dice_sweep.physics.kernel import _flat_side
 from dice_sweep.physics.outcome import DECISION_MARGIN, decided_side, rest_height, side_below
 from dice_sweep.physics.params import CORNER_STRIDE, FP_CORNERS, FP_G, FP_RHO_MAX, IP_N
 from tests.physics.conftest import make_params, random_states, run_batch, run_one
