@@ -236,8 +236,6 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     result = STALLED
     hit_surf = -1
     hit_corner = -1
-    w2 = omega * omega
-    w3 = abs(omega) * w2
     for _ in range(MAX_SEARCH_STEPS):
         step = math.inf
         best_corner = -1
@@ -262,40 +260,21 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                 rho = fpar[base]
                 rx = rho * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
                 ry = rho * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
-                nr = nx * rx + ny * ry
-                f = h + nr
+                f = h + nx * rx + ny * ry
                 fp = hv + omega * (ny * rx - nx * ry)
-                m2 = accel + rho * w2
-                b = -accel - w2 * nr
+                m2 = accel + rho * omega * omega
                 if f <= tol:
                     if fp < -contact_speed:
                         if best_corner < 0 or fp < best_rate:
                             hit_surf = surf
                             best_corner = k
                             best_rate = fp
+                    elif m2 > 0.0:
+                        step = min(step, max(2.0 * max(fp, 0.0) / m2, min_step))
                     else:
-                        fq = max(fp, 0.0)
-                        if b < 0.0:
-                            c = max(b - rho * w3 * (2.0 * fq / (-b)), -m2)
-                            st = 2.0 * fq / (-c)
-                        elif m2 > 0.0:
-                            st = 2.0 * fq / m2
-                        else:
-                            st = math.inf if fp > 0.0 else 0.0
-                        step = min(step, max(st, min_step))
-                elif fp >= 0.0:
-                    st = safe_step(f, fp, m2)
-                    if st < step and b < 0.0:
-                        big_s = (fp + math.sqrt(fp * fp - 2.0 * b * f)) / (-b)
-                        st = safe_step(f, fp, -max(b - rho * w3 * big_s, -m2))
-                    step = min(step, st)
+                        step = min(step, math.inf if fp > 0.0 else min_step)
                 else:
-                    big_s = f / (-fp)
-                    c = b - rho * w3 * big_s
-                    if c >= 0.0:
-                        step = min(step, big_s)
-                    else:
-                        step = min(step, safe_step(f, fp, min(-c, m2)))
+                    step = min(step, safe_step(f, fp, m2))
         if best_corner >= 0:
             hit_corner = best_corner
             result = tau
