@@ -70,3 +70,57 @@ def test_search_matches_the_generic_scan_bitwise(kwargs, rng):
             contacts += 1
             assert tuple(hit_a) == tuple(hit_b)
     assert contacts > 100  # the comparison covered real contacts, not only horizons
+
+
+# --- a corner grazing a surface ------------------------------------------------------------
+
+
+@numba.njit
+def counted_search(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out):
+    """reference_search, returning (tau, steps)."""
+    n = ipar[IP_N]
+    g = fpar[FP_G]
+    out[:] = s0
+    tau = 0.0
+    for steps in range(1, MAX_SEARCH_STEPS + 1):
+        step = _scan(out, fpar, n, 1, g, 0.0, tol, min_step, contact_speed, hit)
+        if step < 0.0:
+            return tau, steps
+        if tau + step > tau_max:
+            return NO_CONTACT, steps
+        tau += step
+        flight_state(s0, tau, g, out)
+    return STALLED, MAX_SEARCH_STEPS
+
+
+# The start of fig11's slowest flight (64 x 64 grid): after an impact the bottom corner of the
+# pentagon rests on the table (gap 0, rate -5e-17 m/s) and rho omega^2 = 9.84 m/s^2 is close
+# to g, so the corner barely accelerates into the table. Stepping by min_step there took
+# 162,122 steps, 42 % of all of fig11's search steps on that grid.
+GRAZING_START = [0.13362977980409033, 0.013396465054120675, -1.6465824130211544,
+                 0.362518030145983, -0.027526542730405737, -27.060723010244747]
+
+
+def test_a_corner_grazing_the_table_is_left_in_few_steps():
+    from tests.physics.test_flight_search_exact import lowest_gap_before
+
+    fpar, ipar = make_params(sides=5)
+    tol, min_step, contact_speed = tolerances(fpar)
+    hit, out = np.zeros(2, np.int64), np.empty(6)
+    s0 = np.array(GRAZING_START)
+    tau, steps = counted_search(s0, fpar, ipar, 1.0, tol, min_step, contact_speed, hit, out)
+    assert tau > 0.0 and steps < 1000  # 162,122 before
+    assert next_contact(s0, fpar, ipar, 1.0, tol, min_step, contact_speed, hit, out) == tau
+    assert lowest_gap_before(fpar, 5, s0, tau) >= -tol  # never deeper than the tolerance
+
+
+def test_touching_step_cases():
+    from dice_sweep.physics.flight import _touching_step
+
+    tol, m2 = 1e-14, 19.6
+    assert _touching_step(0.0, 1e-3, m2, tol) == 2e-3 / m2  # separating: as before
+    assert _touching_step(-tol, -1e-17, m2, tol) == 0.0  # deeper than tol / 2: min_step
+    for f, fp in [(0.0, 0.0), (0.5 * tol, -1e-12), (-0.25 * tol, -1e-10)]:
+        s = _touching_step(f, fp, m2, tol)
+        assert s > 0.0
+        assert f + fp * s - 0.5 * m2 * s * s == pytest.approx(-0.5 * tol, rel=1e-6)  # the bound's root
