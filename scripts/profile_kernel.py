@@ -1,7 +1,8 @@
 """Where a roll's time goes in the event kernel (paper law, no drag): a breakdown per roll.
 
-Two cases: fig08's config at 128 x 128 and the Table I die at 64 x 64 (scripts/bench_kernel.py's
-grid). For each case, on one core, these parts are timed:
+Three cases: fig08's config at 128 x 128, the Table I die at 64 x 64 (scripts/bench_kernel.py's
+grid, fig08's ranges) and fig11's pentagon thrown sideways on fig11's own grid (vx0 against y0)
+at 64 x 64, the case of change 4 below. For each case, on one core, these parts are timed:
 
 * batch: ``roll_batch`` on the whole grid (the public API);
 * contact search: the drag-free search (``search_free``, what ``next_contact`` runs without
@@ -53,11 +54,22 @@ from dice_sweep.config import load_config  # noqa: E402
 from dice_sweep.physics import COUNT_COLUMNS, pack_params, roll_batch  # noqa: E402
 from dice_sweep.physics import flight, impact, kernel, outcome, pivot  # noqa: E402
 from dice_sweep.physics.params import FP_G, FP_RHO_MAX, FP_WALL, IP_N  # noqa: E402
+from dice_sweep.sweep import axis_values, initial_states  # noqa: E402
 
 CASES = (
     ("fig08, 128 x 128", "configs/fig08.toml", 128),
     ("Table I, 64 x 64", "configs/table1.toml", 64),
+    ("fig11, 64 x 64", "configs/fig11.toml", 64),
 )
+OWN_GRID = {"configs/fig11.toml"}  # rolled on the config's own grid (vx0 against y0), not fig08's ranges
+
+
+def case_states(cfg, config, num):
+    """The rolls of a case: fig08's ranges (bench_kernel's grid) or the config's own grid."""
+    if config not in OWN_GRID:
+        return grid_states(cfg, num)
+    own = load_config(ROOT / config, [f"grid.x.num={num}", f"grid.y.num={num}"])
+    return initial_states(own, axis_values(own.grid.x), axis_values(own.grid.y))
 
 
 def tolerances(fpar):
@@ -204,7 +216,7 @@ def profile_case(config, num, repeat):
     cfg = load_config(ROOT / config, [])
     fpar, ipar = pack_params(cfg)
     n = ipar[IP_N]
-    states = grid_states(cfg, num)
+    states = case_states(cfg, config, num)
     rolls = states.shape[0]
     tol, min_step, contact_speed, stick_speed = tolerances(fpar)
     out_o = np.empty(rolls, np.int8)
@@ -352,8 +364,14 @@ NOTES = """
   ``atan2`` calls, their angles unused) even when the energy was far above any barrier, and
   ``_flat_side`` took the side below on every table impact.
 - Per roll, ``roll_one`` and ``_roll_event`` allocated four small arrays.
+- A corner touching a surface without approaching faster than contact_speed was passed by
+  steps of min_step (3.7e-11 s for this die). On fig11 at 64 x 64 one flight took 162,122
+  such steps, 42 % of all the grid's search steps: after an impact the pentagon's bottom
+  corner rested on the table while it spun at 27 rad/s, where rho omega^2 (9.84 m/s^2)
+  nearly cancels g, so the corner barely accelerated into the table (found by counting
+  steps per flight with this script's counting loop).
 
-## Changes (all bit for bit: outcome, status, counts, t_decided and the segment records)
+## Changes (1 to 3 bit for bit: outcome, status, counts, t_decided and the segment records)
 
 1. The drag-free search is one loop over local variables (``flight.search_free``), called by
    the roll loop with the state as scalars; no trigonometry on steps taken while the centre
@@ -365,17 +383,35 @@ NOTES = """
    counts the corners that are level and still before it looks for the side below
    (``tests/physics/test_outcome_checks.py``).
 3. ``roll_batch`` and ``sample_batch`` allocate a roll's scratch arrays once.
+4. Such a touching corner (fp <= 0) now steps to where the quadratic bound could reach
+   -tol / 2 (``flight._touching_step``), still within the tolerance: that flight takes 165
+   steps, and fig11's mean falls from 10.68 steps per search (this script's counting loop,
+   same grid, previous commit) to the value in the table above; fig11's rolls/s at 128 x 128 rose by 16 to 23 %
+   in three interleaved runs against the previous commit. Results: no outcome, status or impact count changed on fig08, fig11 (512 x 512),
+   fig09, fig13 (256 x 256), fig10 (128 x 128) or the golden files; t_decided moved in 47
+   of fig11's 262,144 pixels and 5 of fig13's 65,536 (the other grids: none).
+   ``tests/physics/test_flight_search.py`` (the grazing start) and
+   ``test_flight_search_exact.py`` (no corner ever below -tol) check it.
 
 Tried and dropped (no gain above the noise of interleaved runs): folding the table's normal
 (0, 1) into the search's expressions; passing the contact's sine and cosine on to
 ``_flat_side``; ``error_model="numpy"`` (it lets numba prune the reference counts of leaf
-functions only, and would turn a division by zero into a NaN instead of an error).
+functions only, and would turn a division by zero into a NaN instead of an error); a
+third-order bound (the exact second derivative of the gap at the step's start, its third
+bounded by rho |omega|^3): 24 % fewer search steps on fig08 (5.29 to 4.05, counted by
+replaying the recorded flights on that commit) but each step dearer by about as much, so
+rolls/s did not change (-2 %, within the noise of scripts/bench_kernel.py; commit cf0054e
+and its revert 5d37201).
 
 ## Left
 
-- Fewer search steps (not tried): any other step sequence, e.g. Newton on the gap itself
-  from the bound's root, moves every contact time by round-off and so every result in its
-  last bits (and some chaotic pixels); that is a change of results, to be made on purpose.
+- Cheaper steps rather than fewer: a step is one dependent chain, and its sine and cosine
+  are a good part of its latency. Near a contact the angle per step is tiny, so the previous
+  sine and cosine could be rotated by a short polynomial instead; that moves contact times
+  by round-off, so every result in its last bits (and some chaotic pixels): a change of
+  results, to be made on purpose.
+- Newton on the gap itself from the bound's root: at low spin the lowest corner's gap is
+  concave, so it would need a bracket.
 - ``pivot_next`` (``pivot.py``, not changed here) recomputes the pivot corner's geometry
   and flat angles (``atan2`` calls) on every pivot; a per-corner table would remove them.
 """
