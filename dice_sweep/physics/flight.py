@@ -160,18 +160,22 @@ def safe_step(f, fp, m2):
 @numba.njit(cache=True)
 def _touching_step(f, fp, m2, tol):
     """Step for a corner within tol of a surface that does not approach faster than
-    contact_speed (m2 > 0).
+    contact_speed.
 
-    Separating (fp > 0): the time for the bound to come back to the surface, 2 fp / m2.
+    Separating (fp > 0): the time for the bound to come back to the surface, 2 fp / m2
+    (never with m2 = 0, a corner of a die without spin against a wall).
     Otherwise the corner may graze the surface for a long time: a corner at the bottom of
     a die spinning at omega with rho omega^2 close to g barely accelerates. It used to step
     by min_step there, and one such fig11 flight took 162,122 steps (42 % of all the search
     steps of fig11 at 64 x 64; tests/physics/test_flight_search.py, grazing). Instead step
     to where the bound could reach -tol / 2: within the tolerance with room for round-off
     (to -tol itself, a resting corner ended 3e-5 tol deeper: test_flight_search_exact.py).
+    With m2 = 0 and fp = 0 (a corner of a die without spin resting against a wall) that is
+    never: min_step there made the search stall after MAX_SEARCH_STEPS while the die fell
+    (test_flight_search_exact.py, random flights, hypothesis seed 25).
     """
     if fp > 0.0:
-        return 2.0 * fp / m2
+        return 2.0 * fp / m2 if m2 > 0.0 else math.inf
     if f + 0.5 * tol > 0.0:
         return safe_step(f + 0.5 * tol, fp, m2)
     return 0.0
@@ -213,10 +217,8 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
                         hit[1] = k
                         best_corner = k
                         best_rate = fp
-                elif m2 > 0.0:
-                    step = min(step, max(_touching_step(f, fp, m2, tol), min_step))
                 else:
-                    step = min(step, math.inf if fp > 0.0 else min_step)
+                    step = min(step, max(_touching_step(f, fp, m2, tol), min_step))
             else:
                 step = min(step, safe_step(f, fp, m2))
     if best_corner >= 0:
@@ -289,10 +291,8 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                             hit_surf = surf
                             best_corner = k
                             best_rate = fp
-                    elif m2 > 0.0:
-                        step = min(step, max(_touching_step(f, fp, m2, tol), min_step))
                     else:
-                        step = min(step, math.inf if fp > 0.0 else min_step)
+                        step = min(step, max(_touching_step(f, fp, m2, tol), min_step))
                 else:
                     step = min(step, safe_step(f, fp, m2))
         if best_corner >= 0:

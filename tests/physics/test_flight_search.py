@@ -124,3 +124,28 @@ def test_touching_step_cases():
         s = _touching_step(f, fp, m2, tol)
         assert s > 0.0
         assert f + fp * s - 0.5 * m2 * s * s == pytest.approx(-0.5 * tol, rel=1e-6)  # the bound's root
+
+
+def test_a_die_without_spin_resting_against_a_wall_falls_to_the_table():
+    """A triangle at rest with a corner on the right wall (m2 = 0, gap 0, rate 0): the search
+    used to step by min_step there and stall after MAX_SEARCH_STEPS (found by hypothesis in
+    test_flight_search_exact.py); the corner never moves into the wall, so the contact is the
+    table's, at the free-fall time of the lowest corner."""
+    fpar, ipar = make_params(sides=3, separation=0.04)
+    tol, min_step, contact_speed = tolerances(fpar)
+    rho = fpar[FP_RHO_MAX]
+    s0 = np.array([fpar[FP_WALL] - rho, rho, 0.0, 0.0, 0.0, 0.0])  # corner 0 points at the wall
+    hit, out = np.zeros(2, np.int64), np.empty(6)
+    tau = next_contact(s0, fpar, ipar, 1.0, tol, min_step, contact_speed, hit, out)
+    lowest = rho * (1.0 - math.sin(math.pi / 3.0))  # the lowest corner's height: rho (1 - sin 60 deg)
+    assert hit[0] == 0  # the table
+    assert tau == pytest.approx(math.sqrt(2.0 * lowest / fpar[FP_G]), rel=1e-9)
+
+
+def test_touching_step_without_acceleration():
+    from dice_sweep.physics.flight import _touching_step
+
+    tol = 1e-14
+    assert _touching_step(0.0, 0.0, 0.0, tol) == math.inf  # resting against a wall, no spin
+    assert _touching_step(0.0, 1e-6, 0.0, tol) == math.inf  # leaving it
+    assert _touching_step(0.0, -1e-12, 0.0, tol) == pytest.approx(0.5 * tol / 1e-12)  # creeping in
