@@ -33,7 +33,14 @@ from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.physics import COUNT_COLUMNS, STATUS_NAMES
 from dice_sweep.storage import SweepAxis, SweepFile, SweepHeader, rolls_to_maps, write_refinement_maps
-from dice_sweep.sweep import DEFAULT_TILE_SHAPE, SweepInterrupted, SweepJob, TileGrid, default_workers
+from dice_sweep.sweep import (
+    DEFAULT_TILE_SHAPE,
+    SweepInterrupted,
+    SweepJob,
+    TileGrid,
+    _process_context,
+    default_workers,
+)
 
 CHUNK_ROLLS = 4096  # rolls per batch handed to a worker (and per progress-bar step)
 MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse grid
@@ -95,20 +102,13 @@ def _rolled_chunks(job: SweepJob, chunks, workers: int):
         return
     job.warm_up()  # compile before forking, so that every worker inherits the kernel
     executor = ProcessPoolExecutor(
-        min(workers, len(chunks)), mp_context=_fork_context(), initializer=_init_worker, initargs=(job,)
+        min(workers, len(chunks)), mp_context=_process_context(), initializer=_init_worker, initargs=(job,)
     )
     try:
         yield from executor.map(_roll_in_worker, chunks)
     finally:
         # on Ctrl-C or an error, drop the chunks not started rather than roll them all first
         executor.shutdown(wait=True, cancel_futures=True)
-
-
-def _fork_context():
-    import multiprocessing
-
-    # as dice_sweep.sweep: fork shares the compiled kernel on Linux; spawn elsewhere
-    return multiprocessing.get_context("fork" if sys.platform.startswith("linux") else "spawn")
 
 
 # --- the quadtree -------------------------------------------------------------------------
