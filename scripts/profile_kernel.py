@@ -386,13 +386,13 @@ NOTES = """
 4. Such a touching corner (fp <= 0) now steps to where the quadratic bound could reach -tol
    / 2 (``flight._touching_step``), still within the tolerance: that flight takes 165 steps,
    and fig11's mean falls from 10.68 steps per search (this script's counting loop, same
-   grid, previous commit) to the value in the table above; fig11's rolls/s at 128 x 128 rose
-   by 16 to 23 % in three interleaved runs against the previous commit. Results: no outcome,
+   grid, previous commit) to the value in the table above. Results, from `dice-sweep sweep`
+   before and after at the sizes named, compared with ``storage.read_sweep``: no outcome,
    status or impact count changed on fig08, fig11 (512 x 512), fig09, fig13 (256 x 256),
-   fig10 (128 x 128) or the golden files; t_decided moved in 47 of fig11's 262,144 pixels
-   and 5 of fig13's 65,536 (the other grids: none). ``tests/physics/test_flight_search.py``
-   (the grazing start) and ``test_flight_search_exact.py`` (no corner ever below -tol) check
-   it.
+   fig10 (128 x 128) or the golden files (``scripts/make_golden.py --check``); t_decided
+   moved in 47 of fig11's 262,144 pixels and 5 of fig13's 65,536 (the other grids: none).
+   ``tests/physics/test_flight_search.py`` (the grazing start) and
+   ``test_flight_search_exact.py`` (no corner ever below -tol) check it.
 
 Tried and dropped (no gain above the noise of interleaved runs): folding the table's normal
 (0, 1) into the search's expressions; passing the contact's sine and cosine on to
