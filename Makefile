@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: venv demo test figures measured bench shards clean
+.PHONY: venv demo test test-explore figures measured bench shards clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -15,6 +15,10 @@ venv: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# the property tests with fresh random examples (`make test` draws the same ones every run)
+test-explore: $(STAMP)
+	HYPOTHESIS_PROFILE=explore $(BIN)/python -m pytest -q tests/test_config.py tests/physics/test_impact.py tests/physics/test_flight_search_exact.py
 
 demo: $(STAMP)
 	mkdir -p out
