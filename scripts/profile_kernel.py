@@ -31,6 +31,13 @@ search matches bit for bit), split into steps taken while the centre of mass is 
 rho_max (1 + 1e-6) from the table (one bound, no trigonometry) and steps over the corners.
 The replays carry their own loop overhead, which is why "rest" can come out negative.
 
+Whether a search step is bound by the latency of its chain (each step's length is needed
+before the next angle) or by its work: the recorded flights are searched again with the
+kernel's one-step function ``flight._scan``, 1, 2 or 4 searches at a time, one step of each
+in turn (``replay_interleaved``); a CPU waiting on one chain could run the others' steps
+meanwhile. Beside it, the latency of the chain's longest links, timed as chains of their
+own (``chain_sincos``, ``chain_sqrt_div``).
+
     python scripts/profile_kernel.py [--repeat 7] [--write]
 
 ``--write`` regenerates docs/profile.md (the text around the tables is in this script).
@@ -61,6 +68,7 @@ CASES = (
     ("Table I, 64 x 64", "configs/table1.toml", 64),
     ("fig11, 64 x 64", "configs/fig11.toml", 64),
 )
+LANE_WIDTHS = (1, 2, 4)  # searches interleaved step by step in replay_interleaved
 OWN_GRID = {"configs/fig11.toml"}  # rolled on the config's own grid (vx0 against y0), not fig08's ranges
 
 
@@ -151,6 +159,78 @@ def replay_counts(starts, fpar, ipar, t_left, tol, min_step, contact_speed, step
     out = np.empty(6)
     for i in range(starts.shape[0]):
         _, steps[i], far[i] = count_search_steps(starts[i], fpar, ipar, t_left[i], tol, min_step, contact_speed, hit, out)
+
+
+@numba.njit
+def replay_interleaved(starts, fpar, ipar, t_left, tol, min_step, contact_speed, width, taus):
+    """The search from every flight start, ``width`` searches at a time, one step of each in
+    turn: the kernel's own step (``flight._scan``) then ``flight.flight_state``, a lane taking
+    the next start when its search ends. The steps of different searches are independent, so
+    if a step were bound by the latency of its chain, width 2 would run two chains at once."""
+    n = ipar[IP_N]
+    g = fpar[FP_G]
+    n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
+    hit = np.zeros(2, np.int64)
+    cur = np.empty((width, 6))
+    tau = np.zeros(width)
+    lane_start = np.full(width, -1, np.int64)
+    steps_left = np.zeros(width, np.int64)
+    queued = 0
+    active = 0
+    for lane in range(min(width, starts.shape[0])):
+        lane_start[lane] = queued
+        cur[lane] = starts[queued]
+        steps_left[lane] = flight.MAX_SEARCH_STEPS
+        queued += 1
+        active += 1
+    while active > 0:
+        for lane in range(width):
+            i = lane_start[lane]
+            if i < 0:
+                continue
+            step = flight._scan(cur[lane], fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit)
+            steps_left[lane] -= 1
+            if step >= 0.0 and tau[lane] + step <= t_left[i] and steps_left[lane] > 0:
+                tau[lane] += step
+                flight.flight_state(starts[i], tau[lane], g, cur[lane])
+                continue
+            taus[i] = tau[lane] if step < 0.0 else flight.NO_CONTACT
+            if queued < starts.shape[0]:
+                lane_start[lane] = queued
+                cur[lane] = starts[queued]
+                tau[lane] = 0.0
+                steps_left[lane] = flight.MAX_SEARCH_STEPS
+                queued += 1
+            else:
+                lane_start[lane] = -1
+                active -= 1
+
+
+@numba.njit
+def chain_sincos(x, m):
+    """m dependent sines and cosines of one angle (the search's trigonometry, in a chain)."""
+    for _ in range(m):
+        x = 0.5 + 1e-3 * (math.cos(x) + math.sin(x))
+    return x
+
+
+@numba.njit
+def chain_sqrt_div(x, m):
+    """m dependent square roots each followed by a division (one corner's safe step)."""
+    for _ in range(m):
+        x = 1.0 + 1.0 / (math.sqrt(x) + 3.0)
+    return x
+
+
+def chain_latency(fn, repeat, m=2_000_000):
+    """ns per link of a chain microbenchmark, best of ``repeat``."""
+    fn(0.3, 10)
+    best = math.inf
+    for _ in range(repeat):
+        t0 = time.process_time()
+        fn(0.3, m)
+        best = min(best, time.process_time() - t0)
+    return best * 1e9 / m
 
 
 @numba.njit
@@ -258,6 +338,13 @@ def profile_case(config, num, repeat):
         "pivots (closed form)": (replay_pivots, (pivots, fpar, n, kinds, piv_pre, piv_hits)),
         "fixed overhead": (roll_batch, (fpar, ipar, rest, out_o, out_s, out_c, out_t)),
     }
+    taus = {width: np.empty(len(flights)) for width in LANE_WIDTHS}
+    for width, out in taus.items():
+        replay_interleaved(flights, fpar, ipar, t_left, tol, min_step, contact_speed, width, out)
+        if not np.array_equal(out, taus[LANE_WIDTHS[0]]):
+            raise AssertionError(f"interleaving {width} searches changed their contact times")
+    for width, out in taus.items():
+        timed[("lanes", width)] = (replay_interleaved, (flights, fpar, ipar, t_left, tol, min_step, contact_speed, width, out))
     best = {name: math.inf for name in timed}
     for _ in range(repeat):
         for name, (fn, args) in timed.items():
@@ -265,6 +352,7 @@ def profile_case(config, num, repeat):
             fn(*args)
             best[name] = min(best[name], time.process_time() - t0)
     t_batch = best.pop("batch")
+    lanes = {width: best.pop(("lanes", width)) * 1e9 / len(flights) for width in LANE_WIDTHS}
 
     ns = 1e9 / rolls
     parts = {name: seconds * ns for name, seconds in best.items()}
@@ -272,6 +360,7 @@ def profile_case(config, num, repeat):
         "rolls": rolls,
         "batch": t_batch * ns,
         "rolls_per_s": rolls / t_batch,
+        "lanes": lanes,
         "parts": parts,
         "impacts": impacts_per_roll,
         "replayed_impacts": len(imp_pre) / rolls,
@@ -329,6 +418,38 @@ compare parts within one run.
 """
 
 
+def search_table(results, chains):
+    """The search step: its cost, the latency of its longest operations, and interleaving."""
+    names = [name for name, _, _ in CASES]
+    lines = [
+        (
+            "The search step (ns). Interleaved: the kernel's step (`flight._scan`, three array "
+            "arguments, so dearer than `search_free`'s own loop) driven over 1, 2 or 4 searches "
+            "in turn by this script's `replay_interleaved`; contact times identical at every "
+            "width (checked by the script)."
+        ),
+        "",
+        "| | " + " | ".join(names) + " |",
+        "|---|" + "---:|" * len(names),
+    ]
+    rows = [("per search step (`search_free`, the kernel)", lambda r: r["parts"]["contact search"] / (r["flights"] * r["steps"]))]
+    rows += [("per search, `search_free`", lambda r: r["parts"]["contact search"] / r["flights"])]
+    for width in LANE_WIDTHS:
+        label = "per search, `_scan`, one search at a time" if width == 1 else f"per search, `_scan`, {width} interleaved"
+        rows.append((label, lambda r, w=width: r["lanes"][w]))
+    for label, value in rows:
+        lines.append(f"| {label} | " + " | ".join(f"{value(r):,.0f}" for r in results) + " |")
+    lines += [
+        "",
+        (
+            f"Chains on this machine (best of the rounds, ns per link): a sine and cosine of the "
+            f"previous result {chains['sincos']:.1f}; a square root then a division "
+            f"{chains['sqrt_div']:.1f} (`chain_sincos`, `chain_sqrt_div`)."
+        ),
+    ]
+    return "\n".join(lines)
+
+
 def derived(results):
     """Figures computed from the tables: cost per search step and the impacts' share."""
     lines = []
@@ -340,6 +461,13 @@ def derived(results):
             f"({r['batch'] / r['impacts']:,.0f} ns of batch time per impact, "
             f"{r['parts']['impact law'] / r['impacts']:,.0f} ns of it in the law itself)."
         )
+    for (name, _, _), r in zip(CASES, results):
+        per_step = r["parts"]["contact search"] / (r["flights"] * r["steps"])
+        oracle = r["batch"] - r["parts"]["contact search"] + r["flights"] * per_step
+        lines.append(
+            f"- {name}, bound: a search that found every contact in one step would leave a roll "
+            f"at {oracle:,.0f} ns, {oracle / r['parts']['impact law']:.1f} times the impact law."
+        )
     return "\n".join(lines)
 
 
@@ -347,12 +475,20 @@ def derived(results):
 NOTES = """
 ## Findings
 
-- The contact search is most of a roll. Each step is short (one sine and cosine, then for
-  each corner a gap, its rate, a square root and a division) but the steps form one chain:
-  each step's length is needed before the next state, its angle and its trigonometry can be
-  computed, so a step costs its full latency. The number of steps is set by the conservative
+- The contact search is most of a roll: about five steps per contact, each one sine and
+  cosine, then for each corner a gap, its rate, a square root and a division, and the
+  branches that pick the step. The steps form one chain (each step's length is needed
+  before the next angle), but the step is not bound by that chain's latency: the chain's
+  longest links (a sine and cosine, then one corner's square root and division; the chain
+  table above) are about half of a step, and running 2 or 4 independent searches step by
+  step in turn, which would overlap their chains, made no search faster (slower, with the
+  lanes' own bookkeeping; the table above). A step costs its work. The number of steps is set by the conservative
   advancement itself (the quadratic lower bound and the Newton steps from the safe side);
-  changing it changes the contact times in their last bits, so it was left alone (see below).
+  changing it changes the contact times in their last bits.
+- Root finding, then, is most of the roll, and cannot be removed: even a search that found
+  each contact in one step would leave a roll at several times the impact law (the "bound"
+  lines above), because the outcome checks, the pivots and the fixed set-up together
+  already cost more than the law.
 - Reference counting. An array argument of a numba function costs a call to ``NRT_incref``
   and one to ``NRT_decref`` (atomic) per call, unless numba's pruning pass removes them,
   which it did here only in functions with no call or division that can raise (seen in the
@@ -402,15 +538,16 @@ third-order bound (the exact second derivative of the gap at the step's start, i
 bounded by rho |omega|^3): 24 % fewer search steps on fig08 (5.29 to 4.05, counted by
 replaying the recorded flights on that commit) but each step dearer by about as much, so
 rolls/s did not change (-2 %, within the noise of scripts/bench_kernel.py; commit cf0054e
-and its revert 5d37201).
+and its revert 5d37201); a branch-free safe step (both of its formulas computed, one kept;
+an uncommitted timing on the recorded flights, bit for bit the same contacts).
 
 ## Left
 
-- Cheaper steps rather than fewer: a step is one dependent chain, and its sine and cosine
-  are a good part of its latency. Near a contact the angle per step is tiny, so the previous
-  sine and cosine could be rotated by a short polynomial instead; that moves contact times
-  by round-off, so every result in its last bits (and some chaotic pixels): a change of
-  results, to be made on purpose.
+- Cheaper steps rather than fewer: the sine and cosine are a good part of a step's work.
+  Near a contact the angle per step is tiny, so the previous sine and cosine could be
+  rotated by a short polynomial instead; that moves contact times by round-off, so every
+  result in its last bits (and some chaotic pixels): a change of results, to be made on
+  purpose.
 - Newton on the gap itself from the bound's root: at low spin the lowest corner's gap is
   concave, so it would need a bracket.
 - ``pivot_next`` (``pivot.py``, not changed here) recomputes the pivot corner's geometry
@@ -427,12 +564,16 @@ def main():
     for name, config, num in CASES:
         print(f"profiling {name} ...", file=sys.stderr)
         results.append(profile_case(config, num, args.repeat))
+    chains = {"sincos": chain_latency(chain_sincos, args.repeat), "sqrt_div": chain_latency(chain_sqrt_div, args.repeat)}
     table = markdown(results, args.repeat)
+    search = search_table(results, chains)
     print(table)
     print(derived(results))
+    print(search)
     if args.write:
         method = __doc__.split("\n\n", 1)[1].rsplit("\n\n    python", 1)[0]
         text = DOC_HEAD.format(method=method) + "\n## Breakdown\n\n" + table + "\n\n" + derived(results) + "\n"
+        text += "\n" + search + "\n"
         text += NOTES
         (ROOT / "docs" / "profile.md").write_text(text)
 
