@@ -507,7 +507,7 @@ NOTES = """
   nearly cancels g, so the corner barely accelerated into the table (found by counting
   steps per flight with this script's counting loop).
 
-## Changes (1 to 3 bit for bit: outcome, status, counts, t_decided and the segment records)
+## Changes (1 to 3 and 5 bit for bit: outcome, status, counts, t_decided and the segment records)
 
 1. The drag-free search is one loop over local variables (``flight.search_free``), called by
    the roll loop with the state as scalars; no trigonometry on steps taken while the centre
@@ -529,6 +529,16 @@ NOTES = """
    moved in 47 of fig11's 262,144 pixels and 5 of fig13's 65,536 (the other grids: none).
    ``tests/physics/test_flight_search.py`` (the grazing start) and
    ``test_flight_search_exact.py`` (no corner ever below -tol) check it.
+5. The roll loop (``_roll_event``) and its set-up (``_roll_into``) are inlined into
+   ``roll_one``, ``roll_batch`` and ``sample_batch`` (numba's ``inline="always"``): as a call
+   per roll the loop took eight array arguments, a reference count up and down for each.
+   Fixed overhead on fig08's grid: 194 ns per roll in the previous docs/profile.md (commit
+   a1087f1), the value in the table above now. Bit for bit: no outcome, status, impact count
+   or t_decided changed on fig08 and fig11 at 512 x 512, fig09 and fig13 at 256 x 256 or
+   fig10 at 128 x 128 (`dice-sweep sweep` on this commit and on an unpacked archive of the
+   previous one) or in the golden files. A cold start compiles three copies of the loop
+   instead of one: ``NUMBA_CACHE_DIR=<empty directory> dice-sweep roll configs/table1.toml``
+   took 48.6 s against 47.2 s before, one run each.
 
 Tried and dropped (no gain above the noise of interleaved runs): folding the table's normal
 (0, 1) into the search's expressions; passing the contact's sine and cosine on to
