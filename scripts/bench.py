@@ -96,7 +96,7 @@ def main():
     parser.add_argument("--sweep-num", type=int, default=1024, help="cells per axis of the CLI sweep")
     parser.add_argument("--long-num", type=int, default=4096,
                         help="cells per axis of a long CLI sweep, where the fixed start matters little (0: skip)")
-    parser.add_argument("--long-repeat", type=int, default=2, help="runs of the long sweep per worker count")
+    parser.add_argument("--long-repeat", type=int, default=3, help="runs of the long sweep per worker count")
     parser.add_argument("--pymunk-rolls", type=int, default=200)
     parser.add_argument("--write", action="store_true", help="write docs/performance.md")
     args = parser.parse_args()
