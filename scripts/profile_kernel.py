@@ -247,7 +247,7 @@ def replay_impacts(pre, hits, fpar, ipar, post, u_n):
 def replay_outcome(post, hits, fpar, n, stick_speed):
     """The checks ``_roll_event`` makes after every impact, as it makes them."""
     acc = 0.0
-    decide_bound = fpar[FP_G] * fpar[FP_RHO_MAX] * (1.0 - outcome.DECISION_MARGIN)
+    decide_bound = outcome.decision_bound(fpar)
     for i in range(post.shape[0]):
         if hits[i, 0] == flight.SURF_TABLE:
             acc += kernel._flat_side(post[i], fpar, n, stick_speed)

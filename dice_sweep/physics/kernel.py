@@ -49,7 +49,7 @@ from dice_sweep.physics.params import (
     IP_N,
     METHOD_FIXED_STEP,
 )
-from dice_sweep.physics.outcome import DECISION_MARGIN, decided_side, rest_height, side_below  # noqa: F401
+from dice_sweep.physics.outcome import DECISION_MARGIN, decided_side, decision_bound, rest_height, side_below  # noqa: F401
 from dice_sweep.physics.pivot import (
     PIVOT_BALANCED,
     PIVOT_DECIDED,
@@ -163,7 +163,7 @@ def _set_pivot_state(s, fpar, px, chi, omega, corner):
     s[5] = omega
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")  # inlined: a call (four array arguments) per impact costs refcounts
 def _impact(s, fpar, ipar, surf, corner, counts):
     """Resolve one impact and tally it; returns the corner's normal velocity after (m/s)."""
     u_n = resolve_impact(s, fpar, ipar, surf, corner, counts)
@@ -173,26 +173,32 @@ def _impact(s, fpar, ipar, surf, corner, counts):
     return u_n
 
 
+@numba.njit(inline="always")
+def _corner_resting(s, fpar, corner, c, sn, speed):
+    """True if ``corner`` (body angle with cosine c, sine sn) is on the table and moves in or
+    out no faster than ``speed``."""
+    rx, ry = corner_offset(fpar, corner, c, sn)
+    return not (s[1] + ry > 1e-9 * fpar[FP_RHO_MAX] or abs(s[4] + s[5] * rx) > speed)
+
+
 @numba.njit(cache=True)
 def _flat_side(s, fpar, n, speed):
     """The side the die lies flat on (both its corners on the table, neither moving in or out
     faster than ``speed``), or -1."""
     c = math.cos(s[2])
     sn = math.sin(s[2])
-    # Both corners of the side must pass the test below; after a bounce only the corner that
-    # hit does, if any. Counting the corners that pass first skips side_below (a float modulo)
-    # on almost every call, and changes no answer.
+    # Both corners of the side must be resting; after a bounce only the corner that hit is,
+    # if any. Counting the resting corners first skips side_below (a float modulo) on almost
+    # every call, and changes no answer.
     passing = 0
     for corner in range(n):
-        rx, ry = corner_offset(fpar, corner, c, sn)
-        if not (s[1] + ry > 1e-9 * fpar[FP_RHO_MAX] or abs(s[4] + s[5] * rx) > speed):
+        if _corner_resting(s, fpar, corner, c, sn, speed):
             passing += 1
     if passing < 2:
         return -1
     side = side_below(s[2], fpar, n)
     for corner in (side, (side + 1) % n):
-        rx, ry = corner_offset(fpar, corner, c, sn)
-        if s[1] + ry > 1e-9 * fpar[FP_RHO_MAX] or abs(s[4] + s[5] * rx) > speed:
+        if not _corner_resting(s, fpar, corner, c, sn, speed):
             return -1
     return side
 
@@ -278,7 +284,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     stick_speed = math.sqrt(2.0 * g * scale * STICK_HEIGHT)
     smooth_pivot = math.isinf(fpar[FP_MU]) and fpar[FP_DRAG] == 0.0
     drag_free = fpar[FP_DRAG] == 0.0
-    decide_bound = fpar[FP_G] * fpar[FP_RHO_MAX] * (1.0 - DECISION_MARGIN)  # as in decided_side
+    decide_bound = decision_bound(fpar)
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
     for i in range(out.shape[0]):
         out[i] = 0.0
@@ -353,10 +359,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         chatter = chatter + 1 if same_corner else 0
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
-        u_n = resolve_impact(s, fpar, ipar, surf, corner, counts)  # _impact, one call fewer
-        counts[C_IMPACTS] += 1
-        if surf != SURF_TABLE:
-            counts[C_WALL] += 1
+        u_n = _impact(s, fpar, ipar, surf, corner, counts)
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
             # Lying flat on a side, both corners down: the die slides (finite friction) or

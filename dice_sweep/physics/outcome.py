@@ -35,6 +35,14 @@ def side_below(phi, fpar, n):
 
 
 @numba.njit(cache=True)
+def decision_bound(fpar):
+    """Specific energy (J/kg) at or above which no side can be decided: g rho_max with the
+    decision margin. Exact as a first test: min(rho_a, rho_b) <= rho_max and rounding is
+    monotone, so it is never below the barrier of :func:`decided_side`."""
+    return fpar[FP_G] * fpar[FP_RHO_MAX] * (1.0 - DECISION_MARGIN)
+
+
+@numba.njit(cache=True)
 def decided_side(s, fpar, n):
     """The side if it is decided in COM state s, else -1.
 
@@ -45,9 +53,8 @@ def decided_side(s, fpar, n):
     """
     energy = specific_energy(s, fpar)
     # Most calls come at energies above g rho_max, where no side can be decided: answer those
-    # without the side (a float modulo) and its corners. Exact: min(rho_a, rho_b) <= rho_max and
-    # rounding is monotone, so this bound is never below the barrier computed next.
-    if not energy < fpar[FP_G] * fpar[FP_RHO_MAX] * (1.0 - DECISION_MARGIN):
+    # without the side (a float modulo) and its corners.
+    if not energy < decision_bound(fpar):
         return -1
     k = side_below(s[2], fpar, n)
     rho_a = fpar[FP_CORNERS + CORNER_STRIDE * k]
