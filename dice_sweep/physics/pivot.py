@@ -457,6 +457,17 @@ def _dp5_dense(y, h, k, theta, out):
 
 
 @numba.njit(cache=True)
+def _sticking_event(chi, omega, rho, g, mu, normal, friction, drag_accel):
+    """Lift-off (3) or slip (4) of a sticking corner, else 0; ``drag_accel`` is the drag's
+    downward acceleration of the centre of mass, c |v| v_y (m/s^2)."""
+    if -g - drag_accel + omega * omega * rho * math.sin(chi) >= 0.0:
+        return 3  # a released corner would leave the table (see the module docstring)
+    if not math.isinf(mu) and abs(friction) > mu * normal:
+        return 4  # friction cannot hold the corner: it starts to slide
+    return 0
+
+
+@numba.njit(cache=True)
 def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit):
     """The event that holds in contact state y (0: none), with ``hit`` for impacts.
 
@@ -497,10 +508,9 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
                 return 2
     if mode == MODE_STICK:
         speed = math.sqrt(vx * vx + vy * vy)
-        if -g - c * speed * vy + omega * omega * rho * math.sin(chi) >= 0.0:
-            return 3  # a released corner would leave the table (see the module docstring)
-        if not math.isinf(mu) and abs(friction) > mu * normal:
-            return 4  # friction cannot hold the corner: it starts to slide
+        found = _sticking_event(chi, omega, rho, g, mu, normal, friction, c * speed * vy)
+        if found != 0:
+            return found
     else:
         if normal < 0.0:
             return 3
@@ -514,13 +524,9 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
 @numba.njit(cache=True)
 def _stick_event(y, rho, inertia, g, mu, rates):
     """Lift-off (3) or slip (4) of a sticking corner without drag in state y, else 0: the
-    tests of :func:`_contact_event`, with the same arithmetic."""
+    test :func:`_contact_event` makes (the same function)."""
     normal, friction = _contact_rates(y, MODE_STICK, rho, inertia, g, mu, 0.0, rates)
-    if -g + y[1] * y[1] * rho * math.sin(y[0]) >= 0.0:
-        return 3
-    if not math.isinf(mu) and abs(friction) > mu * normal:
-        return 4
-    return 0
+    return _sticking_event(y[0], y[1], rho, g, mu, normal, friction, 0.0)
 
 
 @numba.njit(cache=True)
