@@ -272,6 +272,7 @@ class SweepFile:
         names = [*_map_datasets(header.count_columns), "done_tiles"]
         self._datasets = {name: h5file[name] for name in names}
         self._chunk = chunk_shape(header.tile_shape, header.shape)
+        self._one_space = h5py.h5s.create_simple((1,))  # the memory side of _mark_done's write
         # encoded tiles are copied as they are only into datasets filtered as encode_tile does
         self._direct = all(
             self._datasets[name].chunks == self._chunk
@@ -416,7 +417,7 @@ class SweepFile:
         done = self._datasets["done_tiles"].id
         file_space = done.get_space()
         file_space.select_hyperslab((tile_index,), (1,))
-        done.write(h5py.h5s.create_simple((1,)), file_space, self._ONE)
+        done.write(self._one_space, file_space, self._ONE)
 
     def _copies_chunks(self, rows: slice, cols: slice) -> bool:
         """True if the block at (rows, cols) is one whole chunk, filtered as encode_tile does."""
