@@ -10,9 +10,12 @@ beta_tangential = -0.35, beta_normal = 0.2, dt = 0.001 s, R = 1.9/sqrt(2) cm):
                  # friction = inf (Coulomb coefficient)
     [walls]      # separation = 0.20 (m); no [walls] section: no walls
     [initial]    # x0 = 0, y0 = 0.1 (m), phi0 = 0 (rad), vx0 = vy0 = 0 (m/s), omega0 = 10 (rad/s)
-    [effects]    # air_drag = 0 (1/m), com_offset = [0, 0] (m), speed_restitution = 0 (s/m),
-                 # gravity = 0 (m/s^2; 0: off, world.g applies); all off by default
-    [world]      # g = 9.81 (m/s^2)
+    [effects]    # air_drag = 0 (1/m), com_offset = [0, 0] (m), speed_restitution = 0 (s/m); all off
+    [tracking]   # angle_offset = 0 (rad), time_scale = 1, length_scale = 1: how the tracker saw
+                 # the die (measured drops only; the kernel ignores it)
+    [world]      # g = 9.81 (m/s^2): the one source of g
+
+The keys of [effects] and [tracking] come from the effect registry (dice_sweep/effects.py).
     [integrator] # method = "event" | "fixed_step", dt = 0.001 (s), t_max = 30 (s), max_events
     [grid]       # x = { param, min, max, num }, y = { ... }; no [grid]: a single roll
 
@@ -30,6 +33,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dice_sweep import effects as effect_registry
 from dice_sweep import geometry
 from dice_sweep.errors import ConfigError
 
@@ -41,6 +45,7 @@ __all__ = [
     "World",
     "Integrator",
     "Effects",
+    "Tracking",
     "Axis",
     "Grid",
     "Config",
@@ -90,13 +95,25 @@ class Effects:
 
     ``air_drag`` c (1/m): a = -c |v| v on the centre of mass; ``com_offset`` (dx, dy) (m): centre
     of mass offset from the geometric centre in the body frame (a loaded die); ``speed_restitution``
-    k (s/m): beta_normal / (1 + k |u_n|); ``gravity`` (m/s^2): replaces world.g when above 0.
+    k (s/m): beta_normal / (1 + k |u_n|). The keys are declared in dice_sweep/effects.py.
     """
 
     air_drag: float
     com_offset: tuple
     speed_restitution: float
-    gravity: float
+
+
+@dataclass(frozen=True)
+class Tracking:
+    """How a tracker saw the die (measured drops only; the kernel does not read it).
+
+    ``angle_offset`` (rad): file angle = phi + offset; ``time_scale`` (1): file t = scale * true
+    t; ``length_scale`` (1): file x, y = scale * true x, y. Keys declared in dice_sweep/effects.py.
+    """
+
+    angle_offset: float = 0.0
+    time_scale: float = 1.0
+    length_scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -175,6 +192,7 @@ class Config:
     integrator: Integrator
     grid: Grid | None
     effects: Effects = None  # filled by the loader; None only for hand-built configs
+    tracking: Tracking = Tracking()
     source: str = field(default="<string>", compare=False)
 
     def with_initial(self, **values):
@@ -232,12 +250,7 @@ _SECTION_SPECS = {
         "vy0": _Spec(float, 0.0, unit="m/s"),
         "omega0": _Spec(float, 10.0, unit="rad/s"),
     },
-    "effects": {
-        "air_drag": _Spec(float, 0.0, low=0.0, unit="1/m"),
-        "com_offset": _Spec(float, (0.0, 0.0), unit="m", length=2),
-        "speed_restitution": _Spec(float, 0.0, low=0.0, unit="s/m"),
-        "gravity": _Spec(float, 0.0, low=0.0, unit="m/s^2"),
-    },
+    # [effects] and [tracking]: from the effect registry, below
     "world": {"g": _positive(9.81, "m/s^2")},
     "integrator": {
         "method": _Spec(str, "event", choices=INTEGRATOR_METHODS),
@@ -246,6 +259,11 @@ _SECTION_SPECS = {
         "max_events": _Spec(int, 100_000, low=1),
     },
 }
+for _section, _keys in effect_registry.config_key_specs().items():
+    _SECTION_SPECS[_section] = {
+        key.name: _Spec(float, key.default, low=key.low, high=key.high, low_open=key.low_open, unit=key.unit, length=key.length)
+        for key in _keys.values()
+    }
 _SECTION_CLASSES = {
     "die": Die,
     "contact": Contact,
@@ -254,6 +272,7 @@ _SECTION_CLASSES = {
     "world": World,
     "integrator": Integrator,
     "effects": Effects,
+    "tracking": Tracking,
 }
 _AXIS_SPECS = {
     "param": _Spec(str, choices=GRID_PARAMS),
@@ -503,8 +522,21 @@ def _check_starts_clear(die, walls, initial, grid, checker):
     )
 
 
+def _legacy_gravity(raw, checker):
+    """``[effects] gravity`` is gone (g has one source, ``[world] g``). Files written before
+    that hold ``gravity = 0.0`` (off), which still reads; any other value is an error."""
+    effects = raw.get("effects")
+    if not isinstance(effects, dict) or "gravity" not in effects:
+        return
+    if effects["gravity"] == 0:
+        del effects["gravity"]
+        return
+    raise checker.error("effects.gravity", f"{effects['gravity']!r} is no longer a key: g has one source (allowed: [world] g = {effects['gravity']!r})")
+
+
 def _build(raw, checker):
     """Check the raw TOML dict section by section and build the Config."""
+    _legacy_gravity(raw, checker)
     checker.check_known(raw, ())
     sections = {}
     for name, specs in _SECTION_SPECS.items():

@@ -188,8 +188,8 @@ def outcome_title(cfg, complete=True):
         extras.append(f"loaded ({effects.com_offset[0]:g}, {effects.com_offset[1]:g}) m")
     if effects.speed_restitution:
         extras.append(f"k = {effects.speed_restitution:g} s/m")
-    if effects.gravity:
-        extras.append(f"g = {effects.gravity:g}")
+    if cfg.world.g != 9.81:
+        extras.append(f"g = {cfg.world.g:g}")
     if extras:
         title += "\n" + ", ".join(extras)
     return title if complete else f"{title} (incomplete)"

@@ -345,7 +345,7 @@ def test_malformed_override_names_set_and_the_key(override, key, fragment):
 def test_written_config_has_every_key():
     cfg = parse_config("[walls]\n" + GRID)
     written = tomllib.loads(config_to_toml(cfg))
-    assert set(written) == {"die", "contact", "walls", "initial", "world", "integrator", "effects", "grid"}
+    assert set(written) == {"die", "contact", "walls", "initial", "world", "integrator", "effects", "tracking", "grid"}
     assert set(written["initial"]) == {"x0", "y0", "phi0", "vx0", "vy0", "omega0"}
     assert written["grid"]["x"] == {"param": "omega0", "min": 0.0, "max": 60.0, "num": 8}
     assert written["die"]["circumradius"] == R
@@ -397,3 +397,26 @@ def test_round_trip_is_exact_for_awkward_floats():
     assert again.initial == cfg.initial
     assert again == cfg
     assert isinstance(again, Config)
+
+
+# ---- keys from the effect registry ----------------------------------------------------------
+
+
+def test_effects_and_tracking_keys_come_from_the_registry():
+    from dice_sweep import effects
+    from dice_sweep.config import Effects, Tracking
+
+    specs = effects.config_key_specs()
+    assert set(specs["effects"]) == {f.name for f in dataclasses.fields(Effects)}
+    assert set(specs["tracking"]) == {f.name for f in dataclasses.fields(Tracking)}
+    cfg = parse_config("[tracking]\ntime_scale = 1.03\n")
+    assert cfg.tracking.time_scale == 1.03
+    error = config_error("[tracking]\ntime_scale = 0\n")
+    assert error.key == "tracking.time_scale" and "0" in error.message
+
+
+def test_g_has_one_source():
+    # files written before the registry hold `gravity = 0.0` (off): they still read
+    assert parse_config("[effects]\ngravity = 0.0\n").world.g == 9.81
+    error = config_error("[effects]\ngravity = 9.44\n")
+    assert error.key == "effects.gravity" and "[world] g" in error.message

@@ -584,14 +584,21 @@ def sample_batch(fpar, ipar, states, times, starts, out, out_outcome):
     Roll i starts from ``states[i]`` (geometric centre) at time 0 and is sampled at
     ``times[starts[i]:starts[i+1]]`` (s, ascending); the geometric centre's (x, y, phi, vx, vy,
     omega) go to the same rows of ``out``. Set ipar[IP_CONTINUE] = 1 to follow dice past the
-    decision.
+    decision. Each roll stops at its last sample time (or at t_max if that is earlier): a fit
+    samples short pieces of track, and what follows the last sample is never read.
     """
     rec = np.empty((4096, REC_WIDTH))
     counts = np.zeros(5, dtype=np.int32)
     s, after, roll_pivot_out, hit = np.empty(6), np.empty(6), np.empty(5), np.empty(2, dtype=np.int64)
+    own = fpar.copy()  # per-roll t_max without touching the caller's array
     for i in range(states.shape[0]):
-        outcome, _, _, _, n_rec = _roll_into(fpar, ipar, states[i], rec, counts, s, after, roll_pivot_out, hit)
+        if starts[i + 1] > starts[i]:
+            # just past the last sample, so that it falls inside a simulated segment
+            own[FP_TMAX] = min(fpar[FP_TMAX], times[starts[i + 1] - 1] + 1e-9)
+        else:
+            own[FP_TMAX] = fpar[FP_TMAX]
+        outcome, _, _, _, n_rec = _roll_into(own, ipar, states[i], rec, counts, s, after, roll_pivot_out, hit)
         out_outcome[i] = outcome
         lo = starts[i]
         hi = starts[i + 1]
-        sample_records(fpar, ipar, rec, n_rec, times[lo:hi], out[lo:hi])
+        sample_records(own, ipar, rec, n_rec, times[lo:hi], out[lo:hi])

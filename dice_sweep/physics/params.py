@@ -57,21 +57,21 @@ def inertia_ratio(sides):
 
 
 def _effects_values(cfg):
-    """(air_drag, com_offset, speed_restitution, gravity) of a config, off when absent."""
+    """(air_drag, com_offset, speed_restitution) of a config, off when absent."""
     effects = getattr(cfg, "effects", None)
     if effects is None:
-        return 0.0, (0.0, 0.0), 0.0, 0.0
-    return effects.air_drag, tuple(effects.com_offset), effects.speed_restitution, effects.gravity
+        return 0.0, (0.0, 0.0), 0.0
+    return effects.air_drag, tuple(effects.com_offset), effects.speed_restitution
 
 
 def pack_params(cfg):
     """Flatten a validated :class:`dice_sweep.config.Config` into ``(fpar, ipar)``."""
     n = cfg.die.sides
     radius = cfg.die.circumradius
-    drag, (dx, dy), k_speed, gravity = _effects_values(cfg)
+    drag, (dx, dy), k_speed = _effects_values(cfg)
     fpar = np.zeros(FP_CORNERS + CORNER_STRIDE * n)
     fpar[FP_R] = radius
-    fpar[FP_G] = gravity if gravity > 0.0 else cfg.world.g
+    fpar[FP_G] = cfg.world.g
     fpar[FP_BN] = cfg.contact.beta_normal
     fpar[FP_BT] = cfg.contact.beta_tangential
     sep = cfg.walls.separation

@@ -51,8 +51,8 @@ def test_speed_restitution_on_a_flat_landing(k):
     assert math.isclose(rec[1, REC_STATE + 4], -beta_n / (1 + k * abs(vy)) * vy, rel_tol=1e-9)
 
 
-def test_gravity_effect_replaces_g():
-    params = make_params(gravity=9.44)
+def test_world_g_is_the_kernels_g():
+    params = make_params(g=9.44)
     _, _, _, _, rec, _ = run_one(params, [0.0, 0.2, -math.pi / 2, 0, 0, 0])
     assert math.isclose(rec[1, REC_T], math.sqrt(2 * (0.2 - R) / 9.44), rel_tol=1e-12)
 

@@ -1,0 +1,256 @@
+"""The effect registry: every effect the measured-data loop can add, declared once.
+
+An *effect* is a piece of physics (or of measurement) that a declared model may lack. Each
+entry says what it is called, which config keys switch it on (with units and the values the
+config accepts), which parameters a fit frees (bounds, the null value at which the effect
+does nothing, start values, a typical size), how it reaches the kernel (through the config's
+keys; measurement effects act on the comparison with the tracks instead) and which residual
+signature points to it. Config validation (``[effects]`` and ``[tracking]`` keys), the fit,
+the diagnosis, the CLI help and the docs read from here; docs/effects.md walks through adding
+one.
+
+Kinds:
+
+* ``contact``: changes what happens at an impact;
+* ``flight``: acts between impacts (and so also on the states the fit gives each flight);
+* ``measurement``: the tracker's view of the die (clock, scale, angle zero), not the die.
+
+There is one source of g: ``[world] g``; the ``gravity`` effect frees it.
+"""
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+__all__ = ["ConfigKey", "Param", "Effect", "EFFECTS", "BASE_PARAMS", "effect", "config_key_specs", "set_key", "get_key",
+           "declared_effects", "with_values", "param", "names"]
+
+
+@dataclass(frozen=True)
+class ConfigKey:
+    """A config key an effect owns: ``section.name`` with its default, range and unit."""
+
+    section: str
+    name: str
+    default: object
+    unit: str
+    low: float = -math.inf
+    high: float = math.inf
+    low_open: bool = False
+    length: int = 0  # > 0: an array of this many numbers
+
+
+@dataclass(frozen=True)
+class Param:
+    """A fitted parameter.
+
+    ``key`` is where it lives in a config (``section.name`` or ``section.name[i]``); ``bounds``
+    maps a config to the (low, high) the fit may use; ``null`` is the value at which its
+    effect does nothing (a callable of the config when it is the config's own value, as for g);
+    ``starts`` are the start values of a multi-start fit; ``scale`` is a typical size (finite
+    differences, printing).
+    """
+
+    name: str
+    unit: str
+    key: str
+    bounds: object  # callable(cfg) -> (low, high)
+    null: object  # float or callable(cfg) -> float
+    starts: tuple
+    scale: float
+
+    def null_value(self, cfg):
+        return float(self.null(cfg)) if callable(self.null) else float(self.null)
+
+    def bounds_of(self, cfg):
+        low, high = self.bounds(cfg)
+        return float(low), float(high)
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect: its name, kind, parameters, config keys, switch and residual signature."""
+
+    name: str
+    kind: str  # "contact", "flight" or "measurement"
+    summary: str
+    params: tuple = ()
+    config_keys: tuple = ()  # ConfigKey entries this effect adds to the config schema
+    switch: tuple = ()  # (key, value) set when the effect is added, e.g. contact.model = rigid
+    signature: str = ""  # the residual signature (diagnose) that points to this effect
+    signature_note: str = ""
+
+    def is_declared(self, cfg):
+        """Whether a config already has this effect on (it is then not a candidate)."""
+        if self.switch:
+            key, value = self.switch
+            return get_key(cfg, key) == value
+        return any(get_key(cfg, p.key) != p.null_value(cfg) for p in self.params)
+
+
+def _apothem(cfg):
+    return cfg.die.circumradius * math.cos(math.pi / cfg.die.sides)
+
+
+def _fixed(low, high):
+    return lambda cfg: (low, high)
+
+
+def _declared_g(cfg):
+    return cfg.world.g
+
+
+# beta_normal and beta_tangential are freed in every fit: the declared model's own parameters
+BASE_PARAMS = (
+    Param("beta_normal", "1", "contact.beta_normal", _fixed(0.0, 1.0), math.nan, (), 0.1),
+    Param("beta_tangential", "1", "contact.beta_tangential", _fixed(-1.0, 1.0), math.nan, (), 0.1),
+)
+
+EFFECTS = (
+    Effect(
+        "corner_impulse", "contact",
+        "the impulse acts at the touching corner (the rigid law) instead of the paper's lever R below the centre",
+        switch=("contact.model", "rigid"),
+        signature="impact_spin_vs_lever",
+        signature_note="correlation of the spin error after an impact with the touching corner's horizontal lever arm",
+    ),
+    Effect(
+        "coulomb_friction", "contact",
+        "the tangential impulse is capped at friction times the normal impulse (sliding contacts)",
+        params=(Param("friction", "1", "contact.friction", _fixed(0.0, 3.0), math.inf, (0.1, 0.5), 0.1),),
+        signature="impact_tangential_ratio",
+        signature_note="median |tangential| over normal velocity change of the touching corner at impacts",
+    ),
+    Effect(
+        "air_drag", "flight", "quadratic air drag on the centre of mass, a = -c |v| v",
+        params=(Param("air_drag", "1/m", "effects.air_drag", _fixed(0.0, 5.0), 0.0, (0.05, 0.5), 0.05),),
+        config_keys=(ConfigKey("effects", "air_drag", 0.0, "1/m", low=0.0),),
+        signature="flight_deceleration",
+        signature_note="median deceleration of the speed along the motion left in free flight",
+    ),
+    Effect(
+        "com_offset", "flight", "a loaded die: the centre of mass sits (dx, dy) from the geometric centre, body frame",
+        params=(
+            Param("com_dx", "m", "effects.com_offset[0]", lambda cfg: (-0.5 * _apothem(cfg), 0.5 * _apothem(cfg)), 0.0, (0.002, -0.002), 1e-3),
+            Param("com_dy", "m", "effects.com_offset[1]", lambda cfg: (-0.5 * _apothem(cfg), 0.5 * _apothem(cfg)), 0.0, (0.002, -0.002), 1e-3),
+        ),
+        config_keys=(ConfigKey("effects", "com_offset", (0.0, 0.0), "m", length=2),),
+        signature="flight_wobble_at_spin",
+        signature_note="amplitude of the free-flight residual of the centre at the spin angle (cos phi, sin phi)",
+    ),
+    Effect(
+        "speed_restitution", "contact", "restitution that falls with impact speed, beta_normal / (1 + k |u_n|)",
+        params=(Param("speed_restitution", "s/m", "effects.speed_restitution", _fixed(0.0, 5.0), 0.0, (0.2, 1.0), 0.1),),
+        config_keys=(ConfigKey("effects", "speed_restitution", 0.0, "s/m", low=0.0),),
+        signature="impact_dv_vs_speed",
+        signature_note="correlation of the rebound-speed error with the impact speed",
+    ),
+    Effect(
+        "gravity", "flight", "the acceleration of free fall differs from the declared [world] g",
+        params=(Param("g", "m/s^2", "world.g", lambda cfg: (0.5 * cfg.world.g, 1.5 * cfg.world.g), _declared_g, (), 0.1),),
+        signature="flight_vertical_curvature",
+        signature_note="median extra vertical acceleration in free flight, the same for every track",
+    ),
+    Effect(
+        "angle_offset", "measurement", "the tracker's angle zero is off: file phi = phi + offset",
+        params=(Param("angle_offset", "rad", "tracking.angle_offset", _fixed(-0.5, 0.5), 0.0, (), 0.01),),
+        config_keys=(ConfigKey("tracking", "angle_offset", 0.0, "rad", low=-math.pi, high=math.pi),),
+        signature="rest_angle_offset",
+        signature_note="median angle residual of the flights, as an offset of the tracked angle",
+    ),
+    Effect(
+        "time_scale", "measurement",
+        "the tracker's clock runs off: file t = time_scale * true t (a frame rate that is not the stated one)",
+        params=(Param("time_scale", "1", "tracking.time_scale", _fixed(0.8, 1.25), 1.0, (), 0.01),),
+        config_keys=(ConfigKey("tracking", "time_scale", 1.0, "1", low=0.0, low_open=True),),
+        signature="flight_vertical_curvature",
+        signature_note="free-flight curvature off g by the same factor for every track, with the die's size right at contact",
+    ),
+    Effect(
+        "length_scale", "measurement",
+        "the tracker's length scale is off: file x, y = length_scale * true x, y (angles unchanged)",
+        params=(Param("length_scale", "1", "tracking.length_scale", _fixed(0.8, 1.25), 1.0, (), 0.01),),
+        config_keys=(ConfigKey("tracking", "length_scale", 1.0, "1", low=0.0, low_open=True),),
+        signature="contact_height",
+        signature_note="height of the lowest corner at contact and at rest off the table by a share of the die's size",
+    ),
+)
+
+_BY_NAME = {e.name: e for e in EFFECTS}
+_PARAMS = {p.name: p for p in BASE_PARAMS + tuple(p for e in EFFECTS for p in e.params)}
+
+
+def names():
+    """Names of all effects, in registry order."""
+    return tuple(_BY_NAME)
+
+
+def effect(name):
+    """The registry entry of ``name`` (KeyError if there is none)."""
+    return _BY_NAME[name]
+
+
+def param(name):
+    """The Param called ``name`` (a base parameter or an effect's)."""
+    return _PARAMS[name]
+
+
+def config_key_specs():
+    """{section: {key: ConfigKey}} of every config key the registry owns."""
+    specs = {}
+    for entry in EFFECTS:
+        for key in entry.config_keys:
+            specs.setdefault(key.section, {})[key.name] = key
+    return specs
+
+
+def declared_effects(cfg):
+    """Names of the effects a config already has on, in registry order."""
+    return tuple(e.name for e in EFFECTS if e.is_declared(cfg))
+
+
+def _split_key(key):
+    section, _, rest = key.partition(".")
+    if rest.endswith("]"):
+        name, _, index = rest[:-1].partition("[")
+        return section, name, int(index)
+    return section, rest, None
+
+
+def get_key(cfg, key):
+    """The value at ``section.name`` or ``section.name[i]`` of a config."""
+    section, name, index = _split_key(key)
+    value = getattr(getattr(cfg, section), name)
+    return value if index is None else value[index]
+
+
+def set_key(cfg, key, value):
+    """A copy of ``cfg`` with ``section.name`` (or ``section.name[i]``) set to ``value``."""
+    section, name, index = _split_key(key)
+    table = getattr(cfg, section)
+    if index is not None:
+        items = list(getattr(table, name))
+        items[index] = value
+        value = tuple(items)
+    return dataclasses.replace(cfg, **{section: dataclasses.replace(table, **{name: value})})
+
+
+def with_values(cfg, effect_names, values):
+    """The config with ``effect_names`` switched on and fitted ``values`` (name -> value) set."""
+    for name in effect_names:
+        entry = _BY_NAME[name]
+        if entry.switch:
+            cfg = set_key(cfg, *entry.switch)
+    for name, value in values.items():
+        cfg = set_key(cfg, _PARAMS[name].key, float(value))
+    return cfg
+
+
+def markdown_table():
+    """The registry as a Markdown table (docs/effects.md, docs/physics.md)."""
+    lines = ["| effect | kind | what it changes | parameters (unit, fit bounds, null) | config key | signature |", "|---|---|---|---|---|---|"]
+    for e in EFFECTS:
+        params = "; ".join(f"{p.name} ({p.unit}, null {p.null if not callable(p.null) else 'the declared value'})" for p in e.params) or "-"
+        key = f"`{e.switch[0]} = \"{e.switch[1]}\"`" if e.switch else ", ".join(f"`{p.key}`" for p in e.params)
+        lines.append(f"| {e.name} | {e.kind} | {e.summary} | {params} | {key} | {e.signature} |")
+    return "\n".join(lines)
