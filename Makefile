@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: venv demo test test-explore figures measured bench shards clean
+.PHONY: venv demo test test-explore test-measured figures measured bench shards clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +19,10 @@ test: $(STAMP)
 # the property tests with fresh random examples (`make test` draws the same ones every run)
 test-explore: $(STAMP)
 	HYPOTHESIS_PROFILE=explore $(BIN)/python -m pytest -q tests/test_config.py tests/physics/test_impact.py tests/physics/test_flight_search_exact.py
+
+# the long cases of the measured-data loop on independent synthetic drops (minutes)
+test-measured: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow tests/measured
 
 demo: $(STAMP)
 	mkdir -p out

@@ -12,6 +12,7 @@ import sys
 import click
 
 from dice_sweep import __version__
+from dice_sweep.effects import names as effect_names
 from dice_sweep.errors import ConfigError, DiceSweepError
 
 USER_ERROR_EXIT = 2
@@ -257,7 +258,8 @@ def control(h5_path, sigmas, method, samples, points, seed, workers, json_path, 
 
 def _data_options(command):
     """Options shared by the measured-data commands."""
-    command = click.option("--angle", default="auto", show_default=True, metavar="auto|as-is", help="Detect the angle's sign and zero, or keep the file's.")(command)
+    command = click.option("--angle", default="as-is", show_default=True, metavar="as-is|auto",
+                           help="as-is: the file's phi is the model's angle; auto: measure its sign and zero from tracks that end at rest (refused when none does).")(command)
     command = click.option("--rate", type=float, metavar="HZ", help="Frame rate, for files with a frame column instead of t.")(command)
     command = click.option("--config", "config_path", required=True, metavar="CONFIG", help="The die and the declared model ([contact], [effects]).")(command)
     return command
@@ -266,45 +268,49 @@ def _data_options(command):
 @main.command(name="fit")
 @click.argument("data", metavar="DATA")
 @_data_options
-@click.option("--effects", "effects_text", default="", metavar="A,B", help="Effects to add to the declared model (corner_impulse, coulomb_friction, air_drag, com_offset, speed_restitution, gravity, angle_offset).")
+@click.option("--effects", "effects_text", default="", metavar="A,B", help=f"Effects to add to the declared model ({', '.join(effect_names())}; docs/effects.md).")
 @click.option("--json", "json_path", metavar="OUT.json", help="Write the fit to this JSON file.")
 @click.option("--png", "png_dir", metavar="DIR", help="Draw the residual against time into this folder.")
 def fit_command(data, config_path, rate, angle, effects_text, json_path, png_dir):
-    """Fit the declared model (plus --effects) to tracked drops on a training split; score it
-    on the held-out tracks (RMS pose error, m).
+    """Fit the declared model (plus --effects) to whole tracked drops by multiple shooting on
+    the selection tracks, with 95 % intervals (bootstrap over tracks); score it on the
+    confirmation tracks (RMS pose error, m) against the tracking noise.
 
     \b
-    Example: dice-sweep fit drops.csv.gz --config configs/square_drops.toml --effects gravity --json fit.json
+    Example: dice-sweep fit drops.csv --config configs/square_drops.toml --effects corner_impulse --json fit.json
     """
     from dice_sweep.measured.report import parse_effects, run_fit
 
     result = run_fit(data, _load(config_path, ()), effects=parse_effects(effects_text), rate=rate, angle=angle,
                      json_path=json_path, png_dir=png_dir)
-    params = ", ".join(f"{k} = {v:.4g}" for k, v in result["params"].items())
+    params = ", ".join(f"{k} = {p['value']:.4g} [{p['ci95'][0]:.4g}, {p['ci95'][1]:.4g}]" for k, p in result["params"].items())
     click.echo(f"{result['model']} + {result['effects'] or 'no effects'}: {params}; "
-               f"error train {result['train_error'] * 1000:.2f} mm, held-out {result['test_error'] * 1000:.2f} mm")
+               f"error train {result['train_error'] * 1000:.3f} mm, held-out {result['test_error'] * 1000:.3f} mm "
+               f"({result['test_error'] / result['noise_floor']:.1f} x the noise floor {result['noise_floor'] * 1000:.3f} mm)")
 
 
 @main.command()
 @click.argument("data", metavar="DATA")
 @_data_options
-@click.option("--json", "json_path", required=True, metavar="REPORT.json", help="Write the report to this JSON file.")
+@click.option("--json", "json_path", required=True, metavar="REPORT.json", help="Write the report to this JSON file (docs/measured.md: its keys).")
 @click.option("--md", "md_path", metavar="REPORT.md", help="Also write a readable Markdown report.")
 @click.option("--png", "png_dir", metavar="DIR", help="Draw residual pictures, before and after, into this folder.")
 @click.option("--quiet", is_flag=True, help="No progress lines.")
 def diagnose(data, config_path, rate, angle, json_path, md_path, png_dir, quiet):
-    """Fit the declared model, read its residual, add the effect that explains it best on
-    held-out tracks, repeat while the error falls by 5 % or more; report the chain.
+    """Fit the declared model to whole tracks, test every effect of the registry on tracks it
+    was not fitted to, add one only when its gain is significant and its value not null,
+    repeat; report the verdict (explained / improved / unexplained) against the tracking noise.
 
     \b
-    Example: dice-sweep diagnose drops.csv.gz --config configs/square_drops.toml --json report.json --md report.md
+    Example: dice-sweep diagnose drops.csv --config configs/square_drops.toml --json report.json --md report.md
     """
     from dice_sweep.measured.report import run_diagnose
 
     report = run_diagnose(data, _load(config_path, ()), rate=rate, angle=angle, json_path=json_path, md_path=md_path,
                           png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
-    click.echo(f"baseline held-out error {report['baseline']['test_error'] * 1000:.2f} mm; "
-               f"after {report['after']['effects'] or 'no effects'}: {report['after']['test_error'] * 1000:.2f} mm")
+    click.echo(f"{report['verdict']}: effects added {report['effects_added'] or 'none'}; confirmation error "
+               f"{report['baseline']['test_error'] * 1000:.3f} mm before, {report['after']['test_error'] * 1000:.3f} mm after "
+               f"({report['after']['multiple_of_floor']:.1f} x the noise floor {report['noise_floor'] * 1000:.3f} mm)")
 
 
 @main.command(name="calibrate")

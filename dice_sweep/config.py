@@ -108,12 +108,14 @@ class Tracking:
     """How a tracker saw the die (measured drops only; the kernel does not read it).
 
     ``angle_offset`` (rad): file angle = phi + offset; ``time_scale`` (1): file t = scale * true
-    t; ``length_scale`` (1): file x, y = scale * true x, y. Keys declared in dice_sweep/effects.py.
+    t; ``length_scale`` (1): file x, y = scale * true x, y; ``table_offset`` (m): file y = y +
+    offset. Keys declared in dice_sweep/effects.py.
     """
 
     angle_offset: float = 0.0
     time_scale: float = 1.0
     length_scale: float = 1.0
+    table_offset: float = 0.0
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,8 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 __all__ = ["ConfigKey", "Param", "Effect", "EFFECTS", "BASE_PARAMS", "effect", "config_key_specs", "set_key", "get_key",
            "declared_effects", "with_values", "param", "names"]
 
@@ -68,8 +70,48 @@ class Param:
 
 
 @dataclass(frozen=True)
+class Measurement:
+    """How a measurement effect maps the die's true motion to what the tracker reports, for a
+    parameter value v: ``times_to_true(t_file, v)``, ``state_to_true(states_file, v)`` (an
+    (n, 6) array of x, y, phi, vx, vy, omega, returned as a new array) and
+    ``pose_to_file(poses_true, v)`` ((rows, 3), returned as a new array). The fit applies the
+    measurement effects file -> true in reverse registry order, and true -> file in registry
+    order."""
+
+    times_to_true: object = None
+    state_to_true: object = None
+    pose_to_file: object = None
+
+
+def _scaled(columns, factor_of):
+    """A map multiplying ``columns`` of an array by factor_of(v)."""
+    def apply(array, value):
+        out = np.array(array, dtype=float, copy=True)
+        out[:, columns] *= factor_of(value)
+        return out
+    return apply
+
+
+def _shifted(column, sign):
+    def apply(array, value):
+        out = np.array(array, dtype=float, copy=True)
+        out[:, column] += sign * value
+        return out
+    return apply
+
+
+def _compose(*maps):
+    def apply(array, value):
+        for step in maps:
+            array = step(array, value)
+        return array
+    return apply
+
+
+@dataclass(frozen=True)
 class Effect:
-    """One effect: its name, kind, parameters, config keys, switch and residual signature."""
+    """One effect: its name, kind, parameters, config keys, switch, measurement map and
+    residual signature."""
 
     name: str
     kind: str  # "contact", "flight" or "measurement"
@@ -77,6 +119,7 @@ class Effect:
     params: tuple = ()
     config_keys: tuple = ()  # ConfigKey entries this effect adds to the config schema
     switch: tuple = ()  # (key, value) set when the effect is added, e.g. contact.model = rigid
+    measurement: Measurement = None  # measurement effects: how the tracker maps the motion
     signature: str = ""  # the residual signature (diagnose) that points to this effect
     signature_note: str = ""
 
@@ -155,6 +198,7 @@ EFFECTS = (
         "angle_offset", "measurement", "the tracker's angle zero is off: file phi = phi + offset",
         params=(Param("angle_offset", "rad", "tracking.angle_offset", _fixed(-0.5, 0.5), 0.0, (), 0.01),),
         config_keys=(ConfigKey("tracking", "angle_offset", 0.0, "rad", low=-math.pi, high=math.pi),),
+        measurement=Measurement(state_to_true=_shifted(2, -1.0), pose_to_file=_shifted(2, +1.0)),
         signature="rest_angle_offset",
         signature_note="median angle residual of the flights, as an offset of the tracked angle",
     ),
@@ -163,6 +207,8 @@ EFFECTS = (
         "the tracker's clock runs off: file t = time_scale * true t (a frame rate that is not the stated one)",
         params=(Param("time_scale", "1", "tracking.time_scale", _fixed(0.8, 1.25), 1.0, (), 0.01),),
         config_keys=(ConfigKey("tracking", "time_scale", 1.0, "1", low=0.0, low_open=True),),
+        # file t = s t: true time is t / s, true velocities s times the file's
+        measurement=Measurement(times_to_true=lambda t, s: t / s, state_to_true=_scaled([3, 4, 5], lambda s: s)),
         signature="flight_vertical_curvature",
         signature_note="free-flight curvature off g by the same factor for every track, with the die's size right at contact",
     ),
@@ -171,8 +217,17 @@ EFFECTS = (
         "the tracker's length scale is off: file x, y = length_scale * true x, y (angles unchanged)",
         params=(Param("length_scale", "1", "tracking.length_scale", _fixed(0.8, 1.25), 1.0, (), 0.01),),
         config_keys=(ConfigKey("tracking", "length_scale", 1.0, "1", low=0.0, low_open=True),),
+        measurement=Measurement(state_to_true=_scaled([0, 1, 3, 4], lambda s: 1.0 / s), pose_to_file=_scaled([0, 1], lambda s: s)),
         signature="contact_height",
         signature_note="height of the lowest corner at contact and at rest off the table by a share of the die's size",
+    ),
+    Effect(
+        "table_offset", "measurement", "the tracker's height zero is not the table: file y = true y + offset",
+        params=(Param("table_offset", "m", "tracking.table_offset", lambda cfg: (-0.25 * cfg.die.circumradius, 0.25 * cfg.die.circumradius), 0.0, (), 1e-3),),
+        config_keys=(ConfigKey("tracking", "table_offset", 0.0, "m"),),
+        measurement=Measurement(state_to_true=_shifted(1, -1.0), pose_to_file=_shifted(1, +1.0)),
+        signature="contact_height",
+        signature_note="height of the lowest corner at contact off the table by the same length for every impact",
     ),
 )
 
@@ -244,6 +299,39 @@ def with_values(cfg, effect_names, values):
     for name, value in values.items():
         cfg = set_key(cfg, _PARAMS[name].key, float(value))
     return cfg
+
+
+def measurement_maps(cfg, values):
+    """(times_to_true, state_to_true, pose_to_file) of all measurement effects together, at
+    the fitted ``values`` where given and the config's [tracking] values elsewhere."""
+    active = []
+    for entry in EFFECTS:
+        if entry.measurement is None:
+            continue
+        (p,) = entry.params
+        value = values.get(p.name, get_key(cfg, p.key))
+        if value != p.null_value(cfg):
+            active.append((entry.measurement, value))
+
+    def times_to_true(times):
+        for m, value in reversed(active):
+            if m.times_to_true is not None:
+                times = m.times_to_true(times, value)
+        return times
+
+    def state_to_true(states):
+        for m, value in reversed(active):
+            if m.state_to_true is not None:
+                states = m.state_to_true(states, value)
+        return states
+
+    def pose_to_file(poses):
+        for m, value in active:
+            if m.pose_to_file is not None:
+                poses = m.pose_to_file(poses, value)
+        return poses
+
+    return times_to_true, state_to_true, pose_to_file
 
 
 def markdown_table():

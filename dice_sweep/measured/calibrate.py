@@ -276,8 +276,7 @@ def calibrate(trackset, cfg):
     trackset : dice_sweep.measured.tracks.TrackSet
         Tracks in the model's convention (from :func:`~dice_sweep.measured.tracks.load_tracks`).
     cfg : dice_sweep.config.Config
-        The die (sides, circumradius), free fall (``[effects] gravity`` when set, else
-        ``[world] g``) and the declared contact model (reported, not used).
+        The die (sides, circumradius), free fall (``[world] g``) and the declared contact model (reported, not used).
 
     Returns
     -------
@@ -285,8 +284,8 @@ def calibrate(trackset, cfg):
     """
     sides, radius = cfg.die.sides, cfg.die.circumradius
     effects = cfg.effects
-    g = effects.gravity if effects is not None and effects.gravity > 0 else cfg.world.g
-    rests = [rest_pose(tr.x, tr.y, tr.phi, tr.usable, radius) for tr in trackset.tracks]
+    g = cfg.world.g
+    rests = [rest_pose(tr.x, tr.y, tr.phi, tr.usable, radius, tr.t) for tr in trackset.tracks]
     table = table_level([p for p in rests if p is not None], sides=sides, circumradius=radius)
     rows = []
     skipped = {"too few frames on a side": 0, "not clean (fit, contact or continuity)": 0}

@@ -1,236 +1,539 @@
-"""The measured-data loop: fit the declared model, read the residual, add the effect that
-explains it, repeat while the held-out error still falls clearly; report the chain.
+"""The measured-data loop: fit the declared model to whole tracks, test each candidate effect,
+add one only when it is a significant, non-null improvement, and say how far the result is
+from the tracking noise.
 
-Selection is by cross-validation: every candidate is fitted on the training tracks and scored
-by its RMS pose error on the held-out tracks; the best is kept only if it lowers the held-out
-error by at least MIN_GAIN (relative). Extra parameters are penalised by having to earn that
-gain on tracks they were not fitted to.
+The steps (docs/measured.md states them for users):
+
+1. Tracks are split once into a *selection* set and a *confirmation* set (``confirm_fraction``,
+   by a hash of the trajectory id). Only the selection set chooses effects; the confirmation
+   set gives the before and after errors.
+2. Every model is fitted by multiple shooting (:mod:`dice_sweep.measured.fit`), from several
+   starts per candidate.
+3. Each model's per-track error on tracks it was not fitted to comes from K-fold
+   cross-validation over tracks, each fold's refit taken as one Newton step of the reduced
+   (states eliminated) problem from the fit on all selection tracks.
+4. A candidate is added only if (a) the per-track held-out errors fall significantly: a
+   one-sided Wilcoxon signed-rank test across tracks, its threshold the 95 % quantile of the
+   largest statistic over all candidates in data simulated from the current model (its
+   linearisation, with the estimated tracking noise), and never below the Sidak-corrected
+   normal quantile; (b) the 95 % bootstrap interval (over tracks) of each of its parameters
+   excludes the null value; (c) it removes at least ``MIN_EXCESS_SHARE`` of the error in excess
+   of the noise floor (a smaller gain is the effect soaking up some other misfit).
+5. Verdict: ``explained`` when the median over confirmation tracks of the per-track error is
+   within ``EXPLAINED_FACTOR`` times the noise floor (the median, because a few tracks whose
+   prediction crosses a near-flat landing diverge chaotically whatever the model; the RMS over
+   tracks is reported beside it), ``improved`` when effects were added but it is still above, ``unexplained``
+   when nothing was added and it is above; then the residual signatures that remain are listed.
 """
 
+import hashlib
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from dice_sweep import geometry
-from dice_sweep.measured.fit import (
-    EFFECTS,
-    HORIZON_AFTER_IMPACT,
-    ModelSpec,
-    TrackModel,
-    declared_effects,
-    fit_spec,
-    gravity_of,
-    held_out_error,
-    model_config,
-    prepare_tracks,
-)
+from dice_sweep import effects as registry
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.measured import fit as shooting
+from dice_sweep.measured.flights import estimate_noise
 
-MIN_GAIN = 0.05
+CONFIRM_FRACTION = 0.3
+FOLDS = 5
+BOOTSTRAP = 1000
+NULL_SIMULATIONS = 200
+LEVEL = 0.05
+EXPLAINED_FACTOR = 1.5
+MIN_EXCESS_SHARE = 0.1
+MIN_TRACKS = 8  # fewer usable selection tracks cannot test anything
+MAX_CHAIN = 4
+WOBBLE_MIN_TURN = math.pi  # rad a flight must turn for a wobble at the spin angle to be seen
+
 METRIC = (
-    "RMS over frames of sqrt(dx^2 + dy^2 + (R dphi)^2) in m between tracked and simulated poses, "
-    f"from the first frame to {HORIZON_AFTER_IMPACT * 1000:.0f} ms after the first impact, on held-out tracks"
-)
-SELECTION = (
-    f"cross-validation: each candidate is fitted (soft-L1 least squares) on the training tracks and scored by "
-    f"its held-out RMS error; an effect is added only if it lowers the held-out error by at least {MIN_GAIN:.0%}"
+    "per track, RMS over its described frames of sqrt(dx^2 + dy^2 + (R dphi)^2) (m) between tracked and simulated poses; "
+    "each flight has its own fitted state and is simulated through the next impact over the next flight (multiple shooting); "
+    "a set's error is the RMS over its tracks"
 )
 
 
-def _polyfit_coefficient(t, values, degree, index):
-    if t.size < degree + 2:
-        return math.nan
-    return float(np.polyfit(t, values, degree)[::-1][index])
+def _hash_rank(seed, traj):
+    return int.from_bytes(hashlib.sha256(f"fold:{seed}:{traj}".encode()).digest()[:8], "big")
 
 
-def residual_signatures(cfg, fit, prepared):
-    """Structure of the residual of a fit on tracks, and what each signature points to.
-
-    Returns a list of dicts {"signature", "value", "unit", "points_to", "note"}.
-    """
-    model = TrackModel(cfg, fit.spec, prepared)
-    poses, _, states = model.simulate(fit.params)
-    g = gravity_of(model_config(cfg, fit.spec, fit.params))
-    diff = model.measured - poses
-    curvature_y, curvature_x, wobble, impact_dv, impact_speed, lever = [], [], [], [], [], []
-    for i, track in enumerate(prepared):
-        rows = slice(model.starts[i], model.starts[i + 1])
-        d = diff[rows]
-        t = track.times
-        free = track.free
-        # in flight: an extra constant acceleration shows as curvature of the residual
-        curvature_y.append(2 * _polyfit_coefficient(t[free], d[free, 1], 2, 2))
-        curvature_x.append(2 * _polyfit_coefficient(t[free], d[free, 0], 2, 2) * -np.sign(states[i, 3] or 1.0))
-        phi = track.pose[free, 2]
-        if free.sum() >= 6:
-            basis = np.column_stack([np.ones(free.sum()), t[free], np.cos(phi), np.sin(phi)])
-            coef_x = np.linalg.lstsq(basis, d[free, 0], rcond=None)[0]
-            wobble.append(float(np.hypot(coef_x[2], coef_x[3])))
-        after = (t > track.t_impact) & (t <= track.t_impact + 0.03)
-        if after.sum() >= 3:
-            impact_dv.append(_polyfit_coefficient(t[after], d[after, 1], 1, 1))
-            impact_speed.append(abs(states[i, 4] - g * track.t_impact))
-            lowest = np.argmin(np.sin(track.pose[free, 2][-1] + 2 * np.pi * np.arange(cfg.die.sides) / cfg.die.sides))
-            lever.append(abs(math.cos(track.pose[free, 2][-1] + 2 * np.pi * lowest / cfg.die.sides)))
-    signatures = []
-
-    def add(name, value, unit, points_to, note):
-        signatures.append({"signature": name, "value": value, "unit": unit, "points_to": points_to, "note": note})
-
-    add("flight_vertical_curvature", float(np.nanmedian(curvature_y)), "m/s^2", "gravity",
-        "median extra vertical acceleration of the tracks over the model in free flight")
-    add("flight_horizontal_deceleration", float(np.nanmedian(curvature_x)), "m/s^2", "air_drag",
-        "median horizontal deceleration (against the motion) left in free flight")
-    add("flight_wobble_at_spin", float(np.median(wobble)) if wobble else math.nan, "m", "com_offset",
-        "median amplitude of the horizontal residual at the spin angle (cos phi, sin phi)")
-    if len(impact_dv) >= 3:
-        add("impact_dv_vs_speed", float(np.corrcoef(impact_speed, impact_dv)[0, 1]), "correlation", "speed_restitution",
-            "correlation of the vertical velocity error after the first impact with the impact speed")
-        add("impact_dv_vs_lever", float(np.corrcoef(lever, impact_dv)[0, 1]), "correlation", "corner_impulse",
-            "correlation of that error with the touching corner's horizontal lever arm")
-        add("impact_dv_median", float(np.median(impact_dv)), "m/s", "beta_normal",
-            "median vertical velocity error after the first impact")
-    return signatures
+def _folds(prepared, folds, seed):
+    """Fold index (0..folds-1) of each track, balanced, fixed by the trajectory ids."""
+    order = sorted(range(len(prepared)), key=lambda i: _hash_rank(seed, prepared[i].traj))
+    fold = np.zeros(len(prepared), dtype=np.int64)
+    for rank, i in enumerate(order):
+        fold[i] = rank % folds
+    return fold
 
 
-def first_impact_velocity_error(cfg, fit, prepared):
-    """RMS (m/s) over tracks of the velocity error sqrt(dvx^2 + dvy^2 + (R domega)^2) 30 ms
-    after the first impact, measured velocities from a linear fit over the frames there."""
-    model = TrackModel(cfg, fit.spec, prepared)
-    poses, _, _ = model.simulate(fit.params)
-    errors = []
-    for i, track in enumerate(prepared):
-        rows = slice(model.starts[i], model.starts[i + 1])
-        after = (track.times > track.t_impact + 0.004) & (track.times <= track.t_impact + 0.03)
-        if after.sum() < 3:
-            continue
-        t = track.times[after]
-        measured = [np.polyfit(t, track.pose[after, k], 1)[0] for k in range(3)]
-        simulated = [np.polyfit(t, poses[rows][after, k], 1)[0] for k in range(3)]
-        d = np.subtract(simulated, measured)
-        errors.append(math.sqrt(d[0] ** 2 + d[1] ** 2 + (cfg.die.circumradius * d[2]) ** 2))
-    return float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan
+# --- the reduced (states eliminated) problem of a fit --------------------------------------------
 
 
-def first_impact_spin(cfg, fit, prepared):
-    """How the simulated spin after the first impact compares with the tracked one: share of
-    tracks with the same sign, and the correlation (slopes of phi 6-50 ms after the impact)."""
-    model = TrackModel(cfg, fit.spec, prepared)
-    poses, _, _ = model.simulate(fit.params)
-    pairs = []
-    for i, track in enumerate(prepared):
-        rows = slice(model.starts[i], model.starts[i + 1])
-        after = (track.times > track.t_impact + 0.006) & (track.times < track.t_impact + 0.05)
-        if after.sum() < 4:
-            continue
-        t = track.times[after]
-        pairs.append((np.polyfit(t, track.pose[after, 2], 1)[0], np.polyfit(t, poses[rows][after, 2], 1)[0]))
-    if len(pairs) < 3:
-        return {"sign_agreement": math.nan, "correlation": math.nan, "tracks": len(pairs)}
-    measured, simulated = np.array(pairs).T
-    return {"sign_agreement": float(np.mean(np.sign(measured) == np.sign(simulated))),
-            "correlation": float(np.corrcoef(measured, simulated)[0, 1]),
-            "measured_range_rad_s": [float(measured.min()), float(measured.max())],
-            "simulated_range_rad_s": [float(simulated.min()), float(simulated.max())],
-            "tracks": len(pairs)}
+@dataclass
+class Reduced:
+    """Per-track pieces of a fit's normal equations with the states eliminated."""
+
+    lin: shooting.Linearisation
+    hss_inv: np.ndarray  # (segments, 6, 6)
+    hsp: np.ndarray  # (segments, 6, p)
+    gs: np.ndarray  # (segments, 6)
+    M: np.ndarray  # (tracks, p, p)
+    b: np.ndarray  # (tracks, p)
 
 
-def final_side_agreement(cfg, fit, trackset):
-    """Share of tracks whose simulated resting side equals the tracked one (tracks that end
-    at rest, simulated to their last frame), and how many tracks were compared."""
-    long_prep = prepare_tracks(trackset, cfg, horizon_after_impact=1e9)
-    by_traj = {track.traj: track for track in trackset.tracks}
-    model = TrackModel(cfg, fit.spec, long_prep)
-    poses, _, _ = model.simulate(fit.params)
-    agree = compared = 0
-    for i, prep in enumerate(long_prep):
-        track = by_traj[prep.traj]
-        tail = np.isfinite(track.phi[-5:]) & ~track.glitch[-5:]
-        if tail.sum() < 3 or np.ptp(track.y[-5:][tail]) > 1e-3:
-            continue  # not at rest at the end of the track
-        measured_side = int(geometry.side_below(cfg.die.sides, np.median(track.phi[-5:][tail])))
-        simulated_side = int(geometry.side_below(cfg.die.sides, poses[model.starts[i + 1] - 1, 2] - fit.params.get("angle_offset", 0.0)))
-        compared += 1
-        agree += measured_side == simulated_side
-    return (agree / compared if compared else math.nan), compared
+def _reduce(lin, segments, residual=None, weight=None, centre=True):
+    """Reduced normal equations per track (residual and weights default to the fit's)."""
+    use = shooting.Linearisation(lin.residual if residual is None else residual, lin.weight if weight is None else weight,
+                                 lin.jac_params, lin.jac_states)
+    hss, hsp, hpp, gs, gp = shooting._normal_blocks(use, segments.starts)
+    inv = shooting._damped_inverse(hss, 0.0)
+    m_seg = hpp - np.einsum("sji,sjk,skl->sil", hsp, inv, hsp)
+    b_seg = gp - np.einsum("sji,sjk,sk->si", hsp, inv, gs)
+    p = hsp.shape[2]
+    M = np.zeros((segments.tracks, p, p))
+    b = np.zeros((segments.tracks, p))
+    np.add.at(M, segments.track, m_seg)
+    np.add.at(b, segments.track, b_seg)
+    if centre:
+        # the fit is taken as the optimum: what is left of the gradient (a bound, a rough
+        # cost) is spread evenly, so refits and resamples move only by the tracks they drop
+        b -= b.mean(axis=0)
+    return Reduced(use, inv, hsp, gs, M, b)
 
 
-def _fit_summary(cfg, fit, test_err):
-    return {
-        "model": "rigid" if "corner_impulse" in fit.spec.effects else cfg.contact.model,
-        "effects": list(declared_effects(cfg)) + list(fit.spec.effects),
-        "params": fit.params,
-        "train_error": fit.train_error,
-        "test_error": test_err,
-    }
+def _solve(M, b):
+    """-(M)^-1 b with a small ridge for directions the tracks do not pin."""
+    p = M.shape[0]
+    if p == 0:
+        return np.zeros(0)
+    ridge = 1e-9 * max(float(np.trace(M)) / p, 1e-30)
+    return -np.linalg.solve(M + ridge * np.eye(p), b)
 
 
-def diagnose(trackset, cfg, *, test_fraction=0.3, seed=0, min_gain=MIN_GAIN, max_chain=4, candidates=None, log=None,
-             keep_fits=False):
-    """Run the loop on tracked drops; returns the report dict (docs/measured.md).
+def _clip_step(values, names, step, cfg):
+    """Step on the parameters kept inside their bounds."""
+    clipped = np.array(step, dtype=float)
+    for k, name in enumerate(names):
+        low, high = registry.param(name).bounds_of(cfg)
+        clipped[k] = min(max(values[name] + step[k], low), high) - values[name]
+    return clipped
 
-    With ``keep_fits`` the report also holds "_fits": [("baseline", fit), ("after", fit)] for
-    pictures (not JSON).
-    """
-    say = log or (lambda message: None)
-    train_set, test_set = trackset.split(test_fraction, seed)
-    train = prepare_tracks(train_set, cfg)
-    test = prepare_tracks(test_set, cfg)
-    declared = declared_effects(cfg)
-    pool = [e for e in (candidates or EFFECTS) if e not in declared]
-    say(f"{len(train)} training and {len(test)} held-out tracks usable; candidates: {', '.join(pool)}")
-    current = fit_spec(cfg, ModelSpec(), train)
-    current_test = held_out_error(cfg, current, test)
-    baseline, baseline_test = current, current_test
-    say(f"baseline: held-out error {current_test * 1000:.2f} mm, params {current.params}")
-    chain = []
-    first_round = None
-    while len(chain) < max_chain:
-        results = []
-        for effect in pool:
-            if effect in current.spec.effects:
+
+def cv_errors(red, segments, fold, names, values, cfg):
+    """Per-track held-out RMS errors (m): K-fold over tracks, each fold's refit one Newton step
+    of the reduced problem, the held-out tracks' states refitted to first order."""
+    lin = red.lin
+    errors = np.zeros(segments.tracks)
+    e2_rows = np.zeros(lin.residual.shape[0])
+    for k in np.unique(fold):
+        keep = fold != k
+        step = _solve(red.M[keep].sum(axis=0), red.b[keep].sum(axis=0))
+        step = _clip_step(values, names, step, cfg)
+        held = np.flatnonzero(fold[segments.track] == k)  # segments of held-out tracks
+        ds = -np.einsum("sij,sj->si", red.hss_inv[held], red.gs[held] + np.einsum("sij,j->si", red.hsp[held], step))
+        rows = np.flatnonzero(np.isin(segments.segment_rows, held))
+        local = np.searchsorted(held, segments.segment_rows[rows])
+        moved = lin.residual[rows] + lin.jac_params[rows] @ step + np.einsum("rkj,rj->rk", lin.jac_states[rows], ds[local])
+        e2_rows[rows] = np.einsum("ij,ij->i", moved, moved)
+    sums = np.bincount(segments.track_rows, e2_rows, minlength=segments.tracks)
+    counts = np.bincount(segments.track_rows, minlength=segments.tracks)
+    errors = np.sqrt(sums / np.maximum(counts, 1))
+    return errors
+
+
+def signed_rank_z(d):
+    """One-sided Wilcoxon signed-rank statistic (normal approximation, ties at mean ranks)
+    that the differences ``d`` are positive."""
+    from scipy.stats import rankdata
+
+    d = np.asarray(d, dtype=float)
+    d = d[np.isfinite(d) & (d != 0.0)]
+    n = d.size
+    if n == 0:
+        return 0.0
+    ranks = rankdata(np.abs(d))
+    w_plus = ranks[d > 0].sum()
+    mean = n * (n + 1) / 4.0
+    sd = math.sqrt(n * (n + 1) * (2 * n + 1) / 24.0)
+    return float((w_plus - mean) / sd)
+
+
+def bootstrap_params(red, names, values, cfg, rng, draws=BOOTSTRAP):
+    """One-step bootstrap over tracks: (draws, p) parameter values."""
+    tracks = red.M.shape[0]
+    out = np.zeros((draws, len(names)))
+    for d in range(draws):
+        counts = np.bincount(rng.integers(0, tracks, tracks), minlength=tracks).astype(float)
+        step = _solve(np.einsum("t,tij->ij", counts, red.M), counts @ red.b)
+        step = _clip_step(values, names, step, cfg)
+        out[d] = [values[n] for n in names] + step
+    return out
+
+
+def bootstrap_rms(errors, rng, draws=BOOTSTRAP):
+    """95 % interval of the RMS over tracks of per-track errors, bootstrap over tracks."""
+    errors = np.asarray(errors, dtype=float)
+    errors = errors[np.isfinite(errors)]
+    if errors.size == 0:
+        return [math.nan, math.nan]
+    sq = errors**2
+    means = np.array([sq[rng.integers(0, sq.size, sq.size)].mean() for _ in range(draws)])
+    return [float(np.sqrt(np.quantile(means, 0.025))), float(np.sqrt(np.quantile(means, 0.975)))]
+
+
+def excess_share(e_current, e_candidate, floor):
+    """Share of the error above the noise floor that a candidate removes: median over tracks
+    of the fall of the squared error over the median squared excess (medians, because a few
+    tracks whose prediction crosses a near-flat landing diverge whatever the model)."""
+    excess = float(np.median(e_current**2)) - floor**2
+    if excess <= 0:
+        return 0.0
+    return float(np.median(e_current**2 - e_candidate**2)) / excess
+
+
+def median_interval(errors, rng, draws=BOOTSTRAP):
+    """Median over tracks of per-track errors and its 95 % interval (bootstrap over tracks)."""
+    errors = np.asarray(errors, dtype=float)
+    errors = errors[np.isfinite(errors)]
+    if errors.size == 0:
+        return math.nan, [math.nan, math.nan]
+    medians = [np.median(errors[rng.integers(0, errors.size, errors.size)]) for _ in range(draws)]
+    return float(np.median(errors)), [float(np.quantile(medians, 0.025)), float(np.quantile(medians, 0.975))]
+
+
+# --- one candidate ---------------------------------------------------------------------------
+
+
+def _start_grid(effect_name, cfg):
+    """Start values of an effect's parameters: the registry's starts, taken in step, or the
+    null value when it lists none."""
+    params = registry.effect(effect_name).params
+    if not params:
+        return [{}]
+    count = max(len(p.starts) for p in params) or 1
+    grid = []
+    for k in range(count):
+        start = {}
+        for p in params:
+            if p.starts:
+                start[p.name] = p.starts[min(k, len(p.starts) - 1)]
+            else:
+                start[p.name] = p.null_value(cfg)
+        grid.append(start)
+    return grid
+
+
+SCOUT_ITERATIONS = 6  # iterations each start gets before the best one is carried on
+
+
+def fit_candidate(cfg, current, effect_name, segments):
+    """``current`` plus one effect, fitted from each of the registry's starts for a few
+    iterations (warm states); the best start is then carried on to convergence."""
+    spec = current.spec.with_effect(effect_name)
+    starts = _start_grid(effect_name, cfg)
+    best = None
+    for start in starts:
+        values = dict(current.params)
+        values.update(start)
+        iterations = SCOUT_ITERATIONS if len(starts) > 1 else shooting.MAX_ITERATIONS
+        result = shooting.fit_spec(cfg, spec, segments, start=values, states=current.states, max_iterations=iterations)
+        if best is None or result.cost < best.cost:
+            best = result
+    if not best.converged and len(starts) > 1:
+        best = shooting.fit_spec(cfg, spec, segments, start=best.params, states=best.states)
+    return best
+
+
+def _null_excluded(name, interval, cfg):
+    """Whether a 95 % interval excludes a parameter's null value (a null at infinity, as for
+    friction, is excluded when the interval stays below the upper fit bound)."""
+    entry = registry.param(name)
+    null = entry.null_value(cfg)
+    if math.isinf(null):
+        return interval[1] < entry.bounds_of(cfg)[1] * (1 - 1e-6)
+    return not (interval[0] <= null <= interval[1])
+
+
+def _describe_params(fit, draws, cfg):
+    out = {}
+    for k, name in enumerate(fit.free):
+        entry = registry.param(name)
+        interval = [float(np.quantile(draws[:, k], 0.025)), float(np.quantile(draws[:, k], 0.975))] if draws is not None else [math.nan, math.nan]
+        out[name] = {"value": float(fit.params[name]), "ci95": interval, "unit": entry.unit, "at_bound": fit.at_bound.get(name, False),
+                     "null": entry.null_value(cfg)}
+    return out
+
+
+# --- residual signatures ---------------------------------------------------------------------
+
+SIGNATURES = {
+    # name: (unit, what it measures, registry signature names it points to)
+    "flight_vertical_curvature": ("m/s^2", "extra vertical acceleration left in the flights the states were fitted to"),
+    "flight_deceleration": ("m/s^2", "deceleration along the motion left in the flights"),
+    "flight_spin_change": ("rad/s^2", "angular acceleration left in the flights (no effect of the library changes the spin in flight)"),
+    "flight_wobble_at_spin": ("m", "amplitude of the flights' residual of the centre at the spin angle"),
+    "impact_prediction": ("m", "RMS error of the frames predicted through an impact, over the flight frames' error"),
+}
+
+
+def residual_signatures(prepared, segments, residual, radius):
+    """Structure left in the residual of a fit, track by track; each value with a 95 % interval
+    (bootstrap over tracks) and what it points to in the effect registry."""
+    per_track = {name: [] for name in SIGNATURES}
+    for i in range(segments.tracks):
+        curv, decel, spin, wobble = [], [], [], []
+        for j in np.flatnonzero(segments.track == i):
+            rows = np.arange(segments.starts[j], segments.starts[j + 1])
+            own = rows[~segments.predicted[rows]]
+            if own.size < 6:
                 continue
-            fit = fit_spec(cfg, current.spec.with_effect(effect), train, start=current.params)
-            err = held_out_error(cfg, fit, test)
-            results.append({"effect": effect, "params": fit.params, "test_error": err, "score": err,
-                            "train_error": fit.train_error, "_fit": fit})
-            say(f"  + {effect}: held-out error {err * 1000:.2f} mm")
-        if not results:
+            t = segments.times[own]
+            d = -residual[own]  # tracked minus simulated
+            pose = segments.measured[own]
+            quad = np.polyfit(t, d, 2)  # (3, 3): highest power first
+            curv.append(2 * quad[0, 1])
+            v = np.polyfit(t, pose[:, :2], 1)[0]
+            speed = math.hypot(*v)
+            if speed > 0:
+                decel.append(-2 * (quad[0, 0] * v[0] + quad[0, 1] * v[1]) / speed)
+            spin.append(2 * quad[0, 2] / radius)
+            if np.ptp(pose[:, 2]) > WOBBLE_MIN_TURN:  # else cos, sin of phi are near 1 and t
+                basis = np.column_stack([np.ones_like(t), t, np.cos(pose[:, 2]), np.sin(pose[:, 2])])
+                coef = np.linalg.lstsq(basis, d[:, 0], rcond=None)[0]
+                wobble.append(math.hypot(coef[2], coef[3]))
+        rows = np.flatnonzero(segments.track_rows == i)
+        pred = rows[segments.predicted[rows]]
+        own = rows[~segments.predicted[rows]]
+        for name, values in (("flight_vertical_curvature", curv), ("flight_deceleration", decel), ("flight_spin_change", spin),
+                             ("flight_wobble_at_spin", wobble)):
+            if values:
+                per_track[name].append(float(np.median(values)))
+        if pred.size and own.size:
+            e_pred = math.sqrt(np.mean(np.sum(residual[pred] ** 2, axis=1)))
+            e_own = math.sqrt(np.mean(np.sum(residual[own] ** 2, axis=1)))
+            per_track["impact_prediction"].append(e_pred - e_own)
+    rng = np.random.default_rng(0)
+    out = []
+    for name, values in per_track.items():
+        values = np.array(values)
+        unit, note = SIGNATURES[name]
+        points = [e.name for e in registry.EFFECTS if e.signature == name]
+        if values.size < 3:
+            out.append({"signature": name, "value": math.nan, "ci95": [math.nan, math.nan], "unit": unit, "points_to": points, "note": note})
+            continue
+        medians = [np.median(values[rng.integers(0, values.size, values.size)]) for _ in range(500)]
+        out.append({"signature": name, "value": float(np.median(values)), "ci95": [float(np.quantile(medians, 0.025)), float(np.quantile(medians, 0.975))],
+                    "unit": unit, "points_to": points or ["none in the library"], "note": note, "tracks": int(values.size)})
+    return out
+
+
+def _remaining(signatures):
+    """Signatures whose interval excludes 0: the residual structure left unexplained."""
+    return [s["signature"] for s in signatures if s["signature"] not in ("impact_prediction", "flight_wobble_at_spin")
+            and np.isfinite(s["value"])
+            and not (s["ci95"][0] <= 0.0 <= s["ci95"][1])]
+
+
+# --- the loop --------------------------------------------------------------------------------
+
+
+def noise_floor(trackset, cfg):
+    """Tracking noise from the free flights (bootstrap over tracks): a dict with the sigmas of
+    x, y (m) and phi (rad), the pose noise floor sqrt(sx^2 + sy^2 + (R sphi)^2) (m) and their
+    95 % intervals."""
+    est = estimate_noise(trackset.tracks, sides=cfg.die.sides, circumradius=cfg.die.circumradius, g=cfg.world.g)
+    if not math.isfinite(est.pose):
+        raise DiceSweepError(f"{trackset.path}: tracks: no free flight long enough to measure the tracking noise "
+                             f"(allowed: tracks with flights of several frames)")
+    return {"sigma_x": float(est.sigma[0]), "sigma_y": float(est.sigma[1]), "sigma_phi": float(est.sigma[2]),
+            "sigma_ci95": [list(map(float, row)) for row in est.interval], "pose": float(est.pose),
+            "pose_ci95": list(est.pose_interval), "tracks": est.tracks, "flights": est.flights, "frames": est.frames,
+            "method": "pooled residuals of ballistic fits over the free flights (x, phi linear, y quadratic), "
+                      "degrees of freedom corrected; 95 % intervals by bootstrap over tracks"}
+
+
+def _null_threshold(cfg, current, lin_current, candidates_lin, segments, fold, sigmas, rng, simulations):
+    """95 % quantile of the largest signed-rank statistic over the candidates in data simulated
+    from the current model (its linearisation) with the tracking noise, and the Sidak bound."""
+    from statistics import NormalDist
+
+    count = max(len(candidates_lin), 1)
+    sidak = NormalDist().inv_cdf((1.0 - LEVEL) ** (1.0 / count))
+    usable = [(name, lin, names) for name, lin, names in candidates_lin if lin is not None]
+    if not usable or simulations <= 0:
+        return sidak, sidak, 0
+    rows = lin_current.residual.shape[0]
+    scale = np.array(sigmas)
+    best = np.zeros(simulations)
+    unit = np.ones(rows)
+    for s in range(simulations):
+        noise = rng.normal(size=(rows, 3)) * scale
+        base = _reduce(lin_current, segments, residual=noise, weight=unit, centre=False)
+        e_base = cv_errors(base, segments, fold, list(current.free), current.params, cfg)
+        top = -np.inf
+        for _, lin, names in usable:
+            red = _reduce(lin, segments, residual=noise, weight=unit, centre=False)
+            values = dict(current.params)
+            values.update({n: registry.param(n).null_value(cfg) for n in names if n not in values})
+            e_cand = cv_errors(red, segments, fold, names, values, cfg)
+            top = max(top, signed_rank_z(e_base**2 - e_cand**2))
+        best[s] = top
+    simulated = float(np.quantile(best, 1.0 - LEVEL))
+    return max(simulated, sidak), sidak, simulations
+
+
+def _null_linearisation(cfg, current, effect_name, segments):
+    """The current fit linearised with a candidate's parameters at their null value (None when
+    the candidate has no parameters, or a null at infinity, where no linearisation exists)."""
+    params = registry.effect(effect_name).params
+    if not params:
+        return None, None
+    values = dict(current.params)
+    for p in params:
+        null = p.null_value(cfg)
+        if not math.isfinite(null):
+            return None, None
+        values[p.name] = null
+    spec = current.spec.with_effect(effect_name)
+    at_null = shooting.FitResult(spec, values, current.states, tuple(spec.param_names()), current.cost, 0, True, {})
+    return shooting.linearise(cfg, at_null, segments), list(spec.param_names())
+
+
+def _confirm(cfg, fit, segments):
+    """Per-track errors on confirmation tracks: states fitted, parameters held."""
+    held = shooting.fit_spec(cfg, fit.spec, segments, start=fit.params, fixed=True)
+    model = shooting.ShootingModel(cfg, fit.spec, segments)
+    return shooting.track_errors(segments, model.residuals(held.params, held.states)), held
+
+
+def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=FOLDS, candidates=None, max_chain=MAX_CHAIN,
+             bootstrap=BOOTSTRAP, null_simulations=NULL_SIMULATIONS, log=None, angle_reading=None):
+    """Run the loop on tracked drops; returns the report dict (the JSON contract of
+    docs/measured.md)."""
+    say = log or (lambda message: None)
+    rng = np.random.default_rng(seed)
+    noise = noise_floor(trackset, cfg)
+    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+    select_set, confirm_set = trackset.split(confirm_fraction, seed)
+    select = shooting.prepare_tracks(select_set, cfg, noise=sigma)
+    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma)
+    if len(select) < MIN_TRACKS or not confirm:
+        raise DiceSweepError(
+            f"{trackset.path}: tracks: {len(select)} selection and {len(confirm)} confirmation tracks have a first free flight of "
+            f"{shooting.MIN_FLIGHT_FRAMES} frames or more (allowed: at least {MIN_TRACKS} and 1; {len(trackset.tracks)} tracks in the file)"
+        )
+    floor = noise["pose"]
+    seg_select = shooting.Segments(select, cfg.world.g)
+    seg_confirm = shooting.Segments(confirm, cfg.world.g)
+    fold = _folds(select, folds, seed)
+    declared = registry.declared_effects(cfg)
+    pool = [e for e in (candidates or registry.names()) if e not in declared]
+    say(f"{len(select)} selection and {len(confirm)} confirmation tracks ({seg_select.count} + {seg_confirm.count} flights); "
+        f"noise floor {floor * 1000:.3f} mm; candidates: {', '.join(pool)}")
+
+    current = shooting.fit_spec(cfg, shooting.ModelSpec.of(cfg), seg_select)
+    lin = shooting.linearise(cfg, current, seg_select)
+    red = _reduce(lin, seg_select)
+    e_current = cv_errors(red, seg_select, fold, list(current.free), current.params, cfg)
+    baseline, baseline_red = current, red
+    say(f"baseline: held-out {shooting.rms(e_current) * 1000:.3f} mm, {current.params}")
+    chain, rounds = [], []
+    sigmas = (noise["sigma_x"], noise["sigma_y"], cfg.die.circumradius * noise["sigma_phi"])
+    while len(chain) < max_chain:
+        tried = [e for e in pool if e not in current.spec.effects]
+        if not tried:
             break
-        results.sort(key=lambda r: r["score"])
-        if first_round is None:
-            first_round = results
-        best = results[0]
-        gain = 1.0 - best["test_error"] / current_test
-        chain.append({"step": len(chain) + 1, "best": best["effect"], "test_error": best["test_error"],
-                      "gain": gain, "accepted": gain >= min_gain})
-        if gain < min_gain:
-            say(f"stop: the best, {best['effect']}, gains {gain:.1%} < {min_gain:.0%}")
+        results, null_lins = [], []
+        for name in tried:
+            cand = fit_candidate(cfg, current, name, seg_select)
+            cand_lin = shooting.linearise(cfg, cand, seg_select)
+            cand_red = _reduce(cand_lin, seg_select)
+            e_cand = cv_errors(cand_red, seg_select, fold, list(cand.free), cand.params, cfg)
+            z = signed_rank_z(e_current**2 - e_cand**2)
+            draws = bootstrap_params(cand_red, list(cand.free), cand.params, cfg, rng, bootstrap)
+            params = _describe_params(cand, draws, cfg)
+            new = [p.name for p in registry.effect(name).params]
+            excluded = all(_null_excluded(n, params[n]["ci95"], cfg) for n in new) if new else True
+            if len(new) > 1:  # a vector effect (com_offset): one component away from null is enough
+                excluded = any(_null_excluded(n, params[n]["ci95"], cfg) for n in new)
+            share = excess_share(e_current, e_cand, floor)
+            results.append({"effect": name, "fit": cand, "red": cand_red, "errors": e_cand, "z": z, "params": params,
+                            "null_excluded": bool(excluded), "excess_share": float(share),
+                            "test_error": shooting.rms(e_cand), "at_bound": [n for n in new if params[n]["at_bound"]]})
+            null_lins.append((name, *_null_linearisation(cfg, current, name, seg_select)))
+            say(f"  + {name}: held-out {shooting.rms(e_cand) * 1000:.3f} mm, z = {z:.2f}, share of excess {share:.0%}, "
+                f"null excluded: {excluded}, " + ", ".join(f"{n} = {params[n]['value']:.4g} {params[n]['ci95']}" for n in new))
+        threshold, sidak, sims = _null_threshold(cfg, current, lin, null_lins, seg_select, fold, sigmas, rng, null_simulations)
+        for r in results:
+            r["significant"] = r["z"] > threshold
+            r["accepted"] = bool(r["significant"] and r["null_excluded"] and r["excess_share"] >= MIN_EXCESS_SHARE and not r["at_bound"])
+        results.sort(key=lambda r: -r["z"])
+        rounds.append({"threshold_z": threshold, "sidak_z": sidak, "null_simulations": sims,
+                       "candidates": [{k: v for k, v in r.items() if k not in ("fit", "red", "errors")} for r in results]})
+        accepted = [r for r in results if r["accepted"]]
+        if not accepted:
+            say(f"stop: no candidate passes (threshold z = {threshold:.2f})")
             break
-        current, current_test = best["_fit"], best["test_error"]
-        say(f"added {best['effect']}: held-out error {current_test * 1000:.2f} mm")
-    before_side, compared = final_side_agreement(cfg, baseline, test_set)
-    after_side, _ = final_side_agreement(cfg, current, test_set)
+        best = max(accepted, key=lambda r: r["excess_share"])
+        chain.append({"step": len(chain) + 1, "effect": best["effect"], "z": best["z"], "threshold_z": threshold,
+                      "excess_share": best["excess_share"], "test_error": best["test_error"]})
+        current, red, e_current = best["fit"], best["red"], best["errors"]
+        lin = red.lin
+        say(f"added {best['effect']}: held-out {shooting.rms(e_current) * 1000:.3f} mm")
+
+    # before and after on tracks that took no part in choosing
+    e_before, _ = _confirm(cfg, baseline, seg_confirm)
+    e_after, _ = _confirm(cfg, current, seg_confirm)
+    draws_before = bootstrap_params(baseline_red, list(baseline.free), baseline.params, cfg, rng, bootstrap)
+    draws_after = bootstrap_params(red, list(current.free), current.params, cfg, rng, bootstrap)
+    after_error = shooting.rms(e_after)
+    median_before, median_before_ci = median_interval(e_before, rng, bootstrap)
+    median_after, median_after_ci = median_interval(e_after, rng, bootstrap)
+    if median_after <= EXPLAINED_FACTOR * floor:
+        verdict = "explained"
+    elif chain:
+        verdict = "improved"
+    else:
+        verdict = "unexplained"
+    model = shooting.ShootingModel(cfg, current.spec, seg_select)
+    signatures = residual_signatures(select, seg_select, model.residuals(current.params, current.states), cfg.die.circumradius)
     report = {
-        "metric": METRIC,
-        "selection": SELECTION,
-        "data": {"path": trackset.path, "tracks": len(trackset.tracks), "rate_hz": trackset.rate,
-                 "train_tracks_used": len(train), "test_tracks_used": len(test),
-                 "glitch_frames": trackset.glitch_count, "glitch_tracks": trackset.glitch_tracks,
-                 "angle_convention": trackset.angle_note,
-                 "robust_loss": "soft-L1 least squares, scale 3 mm; glitch frames excluded"},
-        "baseline": _fit_summary(cfg, baseline, baseline_test),
-        "signatures": residual_signatures(cfg, baseline, test),
-        "candidates": [{k: v for k, v in r.items() if not k.startswith("_")} for r in (first_round or [])],
-        "best_effect": chain[0]["best"] if chain and chain[0]["accepted"] else None,
-        "after": _fit_summary(cfg, current, current_test),
+        "verdict": verdict,
+        "verdict_rule": (f"explained: median per-track error on confirmation tracks <= {EXPLAINED_FACTOR} x noise_floor; improved: "
+                         "effects added, still above; unexplained: nothing added, above"),
+        "signatures": signatures,
+        "signatures_remaining": _remaining(signatures) if verdict != "explained" else [],
+        "effects_added": [step["effect"] for step in chain],
+        "angle_reading": angle_reading or trackset.angle_note,
+        "noise_floor": floor,
+        "noise": noise,
+        "baseline": {"test_error": shooting.rms(e_before), "ci95": bootstrap_rms(e_before, rng, bootstrap),
+                     "multiple_of_floor": shooting.rms(e_before) / floor, "median_error": median_before, "median_ci95": median_before_ci,
+                     "median_multiple_of_floor": median_before / floor, "params": _describe_params(baseline, draws_before, cfg),
+                     "effects": list(declared)},
+        "after": {"test_error": after_error, "ci95": bootstrap_rms(e_after, rng, bootstrap), "multiple_of_floor": after_error / floor,
+                  "median_error": median_after, "median_ci95": median_after_ci, "median_multiple_of_floor": median_after / floor,
+                  "params": _describe_params(current, draws_after, cfg), "effects": list(declared) + list(current.spec.effects)},
         "chain": chain,
-        "first_impact_velocity_error": {"before": first_impact_velocity_error(cfg, baseline, test),
-                                        "after": first_impact_velocity_error(cfg, current, test),
-                                        "unit": "m/s"},
-        "final_side_agreement": {"before": before_side, "after": after_side, "tracks": compared},
-        "first_impact_spin": {"before": first_impact_spin(cfg, baseline, test), "after": first_impact_spin(cfg, current, test)},
+        "rounds": rounds,
+        "metric": METRIC,
+        "selection": (f"selection tracks choose, confirmation tracks ({confirm_fraction:.0%}) report; {folds}-fold cross-validation over "
+                      f"tracks (one-step refits); an effect is added when the one-sided Wilcoxon signed-rank statistic of the per-track "
+                      f"held-out squared errors beats the 95 % quantile of its largest value over all candidates in {null_simulations} "
+                      f"simulations from the current model (never below the Sidak bound), every parameter's 95 % bootstrap interval "
+                      f"excludes its null value, no parameter ends at a bound, and it removes at least {MIN_EXCESS_SHARE:.0%} of the "
+                      f"error above the noise floor"),
+        "data": {"path": trackset.path, "tracks": len(trackset.tracks), "rate_hz": trackset.rate,
+                 "selection_tracks": len(select), "confirmation_tracks": len(confirm),
+                 "selection_flights": seg_select.count, "confirmation_flights": seg_confirm.count,
+                 "glitch_frames": trackset.glitch_count, "gap_frames": trackset.gap_frames},
+        "_fits": {"baseline": baseline, "after": current, "confirm_errors": (e_before, e_after),
+                  "segments": (seg_select, seg_confirm), "prepared": (select, confirm)},
     }
-    report["after"]["effects_added"] = list(current.spec.effects)
-    if keep_fits:
-        report["_fits"] = [("baseline", baseline), ("after: " + "+".join(current.spec.effects or ("none",)), current)]
+    params = {}
+    for name, entry in report["after"]["params"].items():
+        params[name] = {"value": entry["value"], "ci95": entry["ci95"], "at_bound": entry["at_bound"], "unit": entry["unit"]}
+    report["params"] = params
     return report

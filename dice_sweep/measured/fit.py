@@ -1,22 +1,27 @@
-"""Fitting the model to tracked drops: parameters, initial states, residuals, errors.
+"""Fitting the model to whole tracked drops by multiple shooting.
 
-A *model spec* is the config's declared model plus named effects. Each effect brings its
-parameters (SI units):
+Every free flight of a track (found by :func:`dice_sweep.measured.flights.find_flights`) is a
+*segment* with its own state (x, y, phi, vx, vy, omega at its first frame, in the file's units).
+A segment is simulated by the kernel from that state over its own flight and on through the
+next impact over the next flight, so each frame of a bounce is described twice: as the flight a
+state was fitted to, and as the prediction of the impact before it. The states of all segments
+and the model's parameters (the declared model's beta_normal and beta_tangential plus the
+parameters of the effects tried, from the registry in :mod:`dice_sweep.effects`) are fitted
+jointly: flight effects (drag, g, a loaded die) act on the flights the states are fitted to,
+so they are fitted consistently, and every bounce counts.
 
-| effect | parameters | what it changes |
-|---|---|---|
-| corner_impulse | - | ``[contact] model = "rigid"`` (impulse at the corner) |
-| coulomb_friction | friction (1) | Coulomb cap of corner impulses and pivots |
-| air_drag | air_drag (1/m) | a = -c abs(v) v |
-| com_offset | com_dx, com_dy (m) | loaded die, body frame |
-| speed_restitution | speed_restitution (s/m) | beta_normal / (1 + k abs(u_n)) |
-| gravity | gravity (m/s^2) | the apparent g of the tracks |
-| angle_offset | angle_offset (rad) | measurement: the tracker's angle zero is off |
+The fit is a Levenberg-Marquardt least squares with a soft-L1 loss (scale ``ROBUST_SCALE`` R,
+iteratively reweighted), finite-difference Jacobians in batches of the kernel (one batch per
+state component and per parameter), and the segments' states eliminated block by block (a
+Schur complement), so a step costs a few kernel batches whatever the number of tracks.
 
-Every fit also frees beta_normal and beta_tangential. The error metric is the RMS over frames
-of sqrt(dx^2 + dy^2 + (R dphi)^2) (m) between tracked and simulated poses, from the first frame
-to HORIZON_AFTER_IMPACT after the first impact: the first impact's physics is measured, the
-chaos the later bounces amplify is not (docs/measured.md says why).
+Measurement effects (kind "measurement" in the registry: the tracker's clock, length scale,
+angle zero and height zero) act between the simulation and the tracks: states are kept in the
+file's units, mapped to true units for the kernel, and its poses mapped back to what the
+tracker would report.
+
+The error of a track is the RMS over its described frames of sqrt(dx^2 + dy^2 + (R dphi)^2)
+(m). Tracks are the independent units.
 """
 
 import dataclasses
@@ -25,279 +30,380 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dice_sweep import effects as registry
+from dice_sweep.measured.flights import segment_track
 from dice_sweep.physics import pack_params
 from dice_sweep.physics.kernel import sample_batch
 from dice_sweep.physics.params import IP_CONTINUE
 
-EFFECT_PARAMS = {
-    "corner_impulse": (),
-    "coulomb_friction": ("friction",),
-    "air_drag": ("air_drag",),
-    "com_offset": ("com_dx", "com_dy"),
-    "speed_restitution": ("speed_restitution",),
-    "gravity": ("gravity",),
-    "angle_offset": ("angle_offset",),
-}
-EFFECTS = tuple(EFFECT_PARAMS)
-BASE_PARAMS = ("beta_normal", "beta_tangential")
-HORIZON_AFTER_IMPACT = 0.06  # s
-IMPACT_WINDOW = 0.01  # m: a minimum of the lowest corner's height below this is an impact
-IMPACT_DV = 0.5  # m/s: a jump of the vertical velocity between frames larger than this is one
-MIN_FREE_FRAMES = 4
-SPEED_RESTITUTION_START = 0.5  # s/m
-TYPICAL_IMPACT_SPEED = 2.0  # m/s, of drops like the shared data's (about 0.15 m high)
-ROBUST_SCALE = 0.003  # m: soft-L1 loss scale, about where tracking glitches begin to dominate
+MIN_FLIGHT_FRAMES = 4  # a flight needs this many usable frames to carry a state of its own
+ROBUST_SCALE = 0.05  # R: soft-L1 scale; larger misfits (a bounce that went another way) count less
+MAX_ITERATIONS = 40
+TOLERANCE = 1e-6  # relative fall of the cost below which the fit has converged
+# forward-difference steps of a segment state (file units: m, m, rad, m/s, m/s, rad/s)
+STATE_STEPS = np.array([1e-7, 1e-7, 1e-6, 1e-6, 1e-6, 1e-5])
+PARAM_STEP = 1e-4  # of a parameter's typical size (registry ``scale``)
+# A finite-difference step moves a smooth prediction by micrometres at most; a prediction that
+# moves more than this (R) crossed a discontinuity (another corner hit first): its derivative
+# is not a derivative, and the rows of that segment after the jump get none.
+JUMP = 1e-3
+MAX_FLIGHTS = 6  # flights per track: the first bounces; later ones are rocking on a corner
 
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """The declared model plus added effects, and how parameters map onto a config."""
+    """The declared model plus added effects (names from the registry).
+
+    The parameters of the declared effects are fitted too: a config declares which physics
+    there is, the tracks say how much.
+    """
 
     effects: tuple = ()
+    declared: tuple = ()
+
+    @classmethod
+    def of(cls, cfg, effects=()):
+        return cls(tuple(effects), registry.declared_effects(cfg))
 
     def param_names(self):
-        names = list(BASE_PARAMS)
-        for effect in self.effects:
-            names += EFFECT_PARAMS[effect]
+        names = [p.name for p in registry.BASE_PARAMS]
+        for name in self.declared + self.effects:
+            names += [p.name for p in registry.effect(name).params]
         return names
 
-    def with_effect(self, effect):
-        return ModelSpec(self.effects + (effect,))
+    def with_effect(self, name):
+        return ModelSpec(self.effects + (name,), self.declared)
 
 
 def declared_effects(cfg):
-    """Effects the config already declares (they are not candidates)."""
-    declared = []
-    if cfg.contact.model == "rigid":
-        declared.append("corner_impulse")
-    if math.isfinite(cfg.contact.friction):
-        declared.append("coulomb_friction")
-    effects = cfg.effects
-    if effects.air_drag:
-        declared.append("air_drag")
-    if any(effects.com_offset):
-        declared.append("com_offset")
-    if effects.speed_restitution:
-        declared.append("speed_restitution")
-    if effects.gravity:
-        declared.append("gravity")
-    return tuple(declared)
+    return registry.declared_effects(cfg)
 
 
 def start_values(cfg, spec):
-    """Starting values: the config's, or a neutral guess for an effect it does not declare."""
-    effects = cfg.effects
-    guess = {
-        "beta_normal": cfg.contact.beta_normal,
-        "beta_tangential": cfg.contact.beta_tangential,
-        "friction": cfg.contact.friction if math.isfinite(cfg.contact.friction) else 0.5,
-        "air_drag": effects.air_drag or 0.05,
-        "com_dx": effects.com_offset[0],
-        "com_dy": effects.com_offset[1],
-        "speed_restitution": effects.speed_restitution or 0.1,
-        "gravity": effects.gravity or cfg.world.g,
-        "angle_offset": 0.0,
-    }
-    return {name: guess[name] for name in spec.param_names()}
-
-
-def param_bounds(cfg, name):
-    """Allowed range of a fitted parameter."""
-    apothem = cfg.die.circumradius * math.cos(math.pi / cfg.die.sides)
-    return {
-        "beta_normal": (0.0, 1.0),
-        "beta_tangential": (-1.0, 1.0),
-        "friction": (0.0, 3.0),
-        "air_drag": (0.0, 5.0),
-        "com_dx": (-0.5 * apothem, 0.5 * apothem),
-        "com_dy": (-0.5 * apothem, 0.5 * apothem),
-        "speed_restitution": (0.0, 5.0),
-        "gravity": (0.5 * cfg.world.g, 1.5 * cfg.world.g),
-        "angle_offset": (-0.5, 0.5),
-    }[name]
-
-
-def model_config(cfg, spec, values):
-    """The config of a spec with fitted ``values`` (a dict by parameter name)."""
-    contact = dataclasses.replace(cfg.contact, beta_normal=values["beta_normal"], beta_tangential=values["beta_tangential"])
-    effects = cfg.effects
-    if "corner_impulse" in spec.effects:
-        contact = dataclasses.replace(contact, model="rigid")
-    if "friction" in values:
-        contact = dataclasses.replace(contact, friction=values["friction"])
-    if "air_drag" in values:
-        effects = dataclasses.replace(effects, air_drag=values["air_drag"])
-    if "com_dx" in values:
-        effects = dataclasses.replace(effects, com_offset=(values["com_dx"], values["com_dy"]))
-    if "speed_restitution" in values:
-        effects = dataclasses.replace(effects, speed_restitution=values["speed_restitution"])
-    if "gravity" in values:
-        effects = dataclasses.replace(effects, gravity=values["gravity"])
-    return dataclasses.replace(cfg, contact=contact, effects=effects)
-
-
-def gravity_of(cfg):
-    return cfg.effects.gravity if cfg.effects.gravity > 0 else cfg.world.g
-
-
-def lowest_corner_height(sides, radius, y, phi):
-    """Height (m) of the lowest corner of poses (y, phi) of the geometric centre."""
-    angles = np.asarray(phi)[..., None] + 2 * np.pi * np.arange(sides) / sides
-    return np.asarray(y) + radius * np.sin(angles).min(axis=-1)
-
-
-def first_impact_frame(t, pose, sides, radius):
-    """Index of the first frame that may already follow the first impact (-1: none found).
-
-    Two signs, the earlier wins: the first local minimum of the lowest corner's height below
-    IMPACT_WINDOW (at 250 Hz the contact falls between frames, so no frame need come close to
-    0), and the first jump of the vertical velocity between frames by more than IMPACT_DV (an
-    impact changes it by metres per second, gravity by g dt). The second catches bounces whose
-    lowest frame stays high; without it some tracks fitted a bounce as free flight
-    (docs/figures/measured_residual.png showed their errors before the "first" impact).
-    """
-    low = lowest_corner_height(sides, radius, pose[:, 1], pose[:, 2])
-    turning = np.flatnonzero((low[:-1] < IMPACT_WINDOW) & (low[1:] >= low[:-1]))
-    first = turning[0] if turning.size else len(t)
-    vy = np.diff(pose[:, 1]) / np.diff(t)
-    jumps = np.flatnonzero(np.diff(vy) > IMPACT_DV) + 1  # vy[k] - vy[k-1]: interval k
-    if jumps.size:
-        first = min(first, jumps[0])
-    return first if first < len(t) else -1
+    """The config's value of every parameter of the spec (an effect not declared starts at its
+    null value, or at its first start value where the null is not a number, as for friction)."""
+    values = {}
+    for name in spec.param_names():
+        entry = registry.param(name)
+        value = float(registry.get_key(cfg, entry.key))
+        if not math.isfinite(value):
+            value = entry.starts[0]
+        low, high = entry.bounds_of(cfg)
+        values[name] = min(max(value, low), high)
+    return values
 
 
 @dataclass(frozen=True)
 class PreparedTrack:
-    """One track reduced to what the fit needs (times from the track's first frame)."""
+    """A track cut into segments: its flights and the frames each segment describes."""
 
     traj: int
-    t0: float  # s, time of the first frame in the file
-    times: np.ndarray  # s from t0, usable frames up to the horizon
-    pose: np.ndarray  # (frames, 3): x, y, phi measured
-    free: np.ndarray  # bool per frame: free flight before the first impact
-    t_impact: float  # s from t0, first impact (first frame below the clearance)
+    t: np.ndarray  # s, file times of the usable frames
+    pose: np.ndarray  # (frames, 3) x, y, phi as in the file (model convention)
+    flights: tuple  # (first, last) indices into t of each flight
+    t_impact: float  # s, file time of the first impact (end of the first flight), nan if none
 
 
-def prepare_tracks(trackset, cfg, horizon_after_impact=HORIZON_AFTER_IMPACT):
-    """Usable frames (finite, not glitches) up to the horizon; tracks with too little free
-    flight before their first impact are left out (they cannot give an initial state)."""
-    sides = cfg.die.sides
-    radius = cfg.die.circumradius
+def prepare_tracks(trackset, cfg, noise=None):
+    """Usable frames and flights of each track (``noise``: sigma of x, y, phi, or None to
+    estimate it per track). Frames a flight's fit rejects as glitches are left out; tracks
+    whose first flight is shorter than MIN_FLIGHT_FRAMES are left out (nothing gives them a
+    state)."""
+    sides, radius, g = cfg.die.sides, cfg.die.circumradius, cfg.world.g
     prepared = []
     for track in trackset.tracks:
-        ok = np.isfinite(track.x) & np.isfinite(track.y) & np.isfinite(track.phi) & ~track.glitch
-        if ok.sum() < MIN_FREE_FRAMES + 2:
+        ok = track.usable
+        if ok.sum() < MIN_FLIGHT_FRAMES:
             continue
-        t = track.t[ok] - track.t[0]
-        pose = np.column_stack([track.x[ok], track.y[ok], track.phi[ok]])
-        first = first_impact_frame(t, pose, sides, radius)
-        if first < MIN_FREE_FRAMES:
+        seg = segment_track(track.t, track.x, track.y, track.phi, ok, sides=sides, circumradius=radius, g=g, noise=noise)
+        keep = ok & ~seg.outliers
+        index = np.flatnonzero(keep)
+        flights = []
+        for first, last in seg.flights[:MAX_FLIGHTS]:
+            inside = np.flatnonzero((index >= first) & (index <= last))
+            if inside.size >= MIN_FLIGHT_FRAMES:
+                flights.append((int(inside[0]), int(inside[-1])))
+        if not flights or index[flights[0][0]] != index[0]:
             continue
-        t_impact = t[first]
-        keep = t <= t_impact + horizon_after_impact
-        free = np.arange(t.size) < first  # frames before the minimum are surely before contact
-        prepared.append(PreparedTrack(track.traj, float(track.t[0]), t[keep], pose[keep], free[keep], float(t_impact)))
+        t = track.t[keep]
+        pose = np.column_stack([track.x[keep], track.y[keep], track.phi[keep]])
+        t_impact = float(t[flights[0][1]]) if len(flights) > 1 else math.nan
+        prepared.append(PreparedTrack(track.traj, t, pose, tuple(flights), t_impact))
     return prepared
 
 
-def initial_states(prepared, g, angle_offset=0.0):
-    """Initial states (x, y, phi, vx, vy, omega) at each track's first frame: least squares of
-    the ballistic motion (x, phi linear; y with acceleration -g) over its free-flight frames."""
-    states = np.zeros((len(prepared), 6))
-    for i, track in enumerate(prepared):
-        t = track.times[track.free]
-        x, y, phi = track.pose[track.free].T
-        design = np.column_stack([np.ones_like(t), t])
-        (x0, vx), *_ = np.linalg.lstsq(design, x, rcond=None)
-        (y0, vy), *_ = np.linalg.lstsq(design, y + 0.5 * g * t * t, rcond=None)
-        (phi0, omega), *_ = np.linalg.lstsq(design, phi - angle_offset, rcond=None)
-        states[i] = (x0, y0, phi0, vx, vy, omega)
-    return states
+def _ballistic_guess(t, pose, g):
+    """(x, y, phi, vx, vy, omega) at t[0] of a least-squares free flight through the frames."""
+    dt = t - t[0]
+    design = np.column_stack([np.ones_like(dt), dt])
+    target = pose.copy()
+    target[:, 1] += 0.5 * g * dt * dt
+    (p0, v), *_ = np.linalg.lstsq(design, target, rcond=None)
+    return np.array([p0[0], p0[1], p0[2], v[0], v[1], v[2]])
 
 
-class TrackModel:
-    """Simulated poses of prepared tracks for a spec's parameter values."""
+class Segments:
+    """The segments of prepared tracks, flattened for the kernel.
 
-    def __init__(self, cfg, spec, prepared):
+    Attributes: ``track`` (segment -> track index), ``starts`` (row offsets per segment),
+    ``times`` (file s from the segment's first frame), ``measured`` (rows, 3),
+    ``predicted`` (row after the segment's impact), ``track_rows`` (row -> track),
+    ``guess`` (segments, 6) ballistic start states in file units.
+    """
+
+    def __init__(self, prepared, g):
+        track, times, measured, predicted, track_rows, guess, starts = [], [], [], [], [], [], [0]
+        for i, prep in enumerate(prepared):
+            for k, (first, last) in enumerate(prep.flights):
+                end = prep.flights[k + 1][1] if k + 1 < len(prep.flights) else last
+                rows = np.arange(first, end + 1)
+                track.append(i)
+                times.append(prep.t[rows] - prep.t[first])
+                measured.append(prep.pose[rows])
+                predicted.append(rows > last)
+                track_rows.append(np.full(rows.size, i))
+                guess.append(_ballistic_guess(prep.t[first:last + 1], prep.pose[first:last + 1], g))
+                starts.append(starts[-1] + rows.size)
+        self.count = len(track)
+        self.tracks = len(prepared)
+        self.track = np.array(track, dtype=np.int64)
+        self.starts = np.array(starts, dtype=np.int64)
+        self.times = np.concatenate(times) if times else np.zeros(0)
+        self.measured = np.concatenate(measured) if measured else np.zeros((0, 3))
+        self.predicted = np.concatenate(predicted) if predicted else np.zeros(0, bool)
+        self.track_rows = np.concatenate(track_rows) if track_rows else np.zeros(0, np.int64)
+        self.segment_rows = np.repeat(np.arange(self.count), np.diff(self.starts))
+        self.guess = np.array(guess).reshape(-1, 6)
+
+
+class ShootingModel:
+    """Simulated poses of segments for a spec's parameters and the segments' states."""
+
+    def __init__(self, cfg, spec, segments):
         self.cfg = cfg
         self.spec = spec
-        self.prepared = prepared
-        self.times = np.concatenate([track.times for track in prepared])
-        self.starts = np.concatenate([[0], np.cumsum([track.times.size for track in prepared])]).astype(np.int64)
-        self.measured = np.concatenate([track.pose for track in prepared])
-        self.track_of_frame = np.repeat(np.arange(len(prepared)), np.diff(self.starts))
+        self.seg = segments
+        self.names = spec.param_names()
+        self.radius = cfg.die.circumradius
 
-    def simulate(self, values):
-        """(simulated poses (frames, 3), outcome per track, initial states)."""
-        cfg = model_config(self.cfg, self.spec, values)
-        offset = values.get("angle_offset", 0.0)
-        states = initial_states(self.prepared, gravity_of(cfg), offset)
-        horizon = float(self.times.max()) + 1e-3
-        cfg = dataclasses.replace(cfg, integrator=dataclasses.replace(cfg.integrator, method="event", t_max=horizon))
+    def simulate(self, values, states):
+        """Poses (rows, 3) as the tracker would see them, and the outcome code per segment."""
+        physical = {k: v for k, v in values.items() if registry.param(k).key.split(".")[0] != "tracking"}
+        cfg = registry.with_values(self.cfg, self.spec.effects, physical)
+        times_to_true, state_to_true, pose_to_file = registry.measurement_maps(self.cfg, values)
+        times = times_to_true(self.seg.times)
+        horizon = float(times.max()) if times.size else 0.0
+        cfg = dataclasses.replace(cfg, integrator=dataclasses.replace(cfg.integrator, method="event", t_max=horizon + 1e-3))
         fpar, ipar = pack_params(cfg)
         ipar[IP_CONTINUE] = 1
-        out = np.zeros((self.times.size, 6))
-        outcome = np.zeros(len(self.prepared), np.int8)
-        sample_batch(fpar, ipar, states, self.times, self.starts, out, outcome)
-        poses = out[:, :3].copy()
-        poses[:, 2] += offset  # the tracker's angle zero, if the spec fits one
-        return poses, outcome, states
+        out = np.zeros((self.seg.times.size, 6))
+        outcome = np.zeros(self.seg.count, np.int8)
+        sample_batch(fpar, ipar, np.ascontiguousarray(state_to_true(states)), np.ascontiguousarray(times), self.seg.starts, out, outcome)
+        return pose_to_file(out[:, :3]), outcome
 
-    def frame_errors(self, values):
-        """Per-frame pose error sqrt(dx^2 + dy^2 + (R dphi)^2) (m)."""
-        poses, _, _ = self.simulate(values)
-        diff = poses - self.measured
-        diff[:, 2] *= self.cfg.die.circumradius
-        return np.sqrt((diff * diff).sum(axis=1))
-
-    def residual_vector(self, values):
-        poses, _, _ = self.simulate(values)
-        diff = poses - self.measured
-        diff[:, 2] *= self.cfg.die.circumradius
-        return diff.ravel()
+    def residuals(self, values, states):
+        """(rows, 3) simulated minus measured, the angle times R (m)."""
+        poses, _ = self.simulate(values, states)
+        diff = poses - self.seg.measured
+        diff[:, 2] *= self.radius
+        return diff
 
 
-def rms(errors):
-    return float(np.sqrt(np.mean(np.square(errors)))) if len(errors) else math.nan
+def _robust_weights(residual, scale):
+    """Soft-L1 IRLS weight per row: rho(e) = 2 c^2 (sqrt(1 + e^2/c^2) - 1), w = rho'(e)/(2e)."""
+    e2 = np.einsum("ij,ij->i", residual, residual)
+    return 1.0 / np.sqrt(1.0 + e2 / scale**2)
+
+
+def _robust_cost(residual, scale):
+    e2 = np.einsum("ij,ij->i", residual, residual)
+    return float(np.sum(2.0 * scale**2 * (np.sqrt(1.0 + e2 / scale**2) - 1.0)))
+
+
+def _segment_sums(values, starts):
+    """Sums over each segment's rows of ``values`` (rows, ...) -> (segments, ...)."""
+    if values.shape[0] == 0:
+        return np.zeros((len(starts) - 1,) + values.shape[1:])
+    sums = np.add.reduceat(values, starts[:-1], axis=0)
+    sums[starts[:-1] == starts[1:]] = 0.0  # empty segments (reduceat repeats the next row)
+    return sums
+
+
+@dataclass
+class Linearisation:
+    """Jacobians and weights of a fit at its solution (for intervals and cross-validation)."""
+
+    residual: np.ndarray  # (rows, 3)
+    weight: np.ndarray  # (rows,)
+    jac_params: np.ndarray  # (rows, 3, p)
+    jac_states: np.ndarray  # (rows, 3, 6)
+
+
+def _difference(model, moved_residual, residual, step):
+    """(moved - base) / step, with rows at or after a jump (JUMP R) in their segment zeroed."""
+    delta = moved_residual - residual
+    size = np.sqrt(np.einsum("ij,ij->i", delta, delta))
+    jumped = size > JUMP * model.radius
+    if jumped.any():
+        # from the first jumping row of a segment on: a discontinuity is crossed once
+        seg = model.seg.segment_rows
+        first = np.full(model.seg.count, np.iinfo(np.int64).max)
+        np.minimum.at(first, seg[jumped], np.flatnonzero(jumped))
+        delta[np.arange(delta.shape[0]) >= first[seg]] = 0.0
+    return delta / step
+
+
+def _jacobians(model, values, states, residual, free_params):
+    """Forward-difference Jacobians: (rows, 3, p) for ``free_params`` and (rows, 3, 6)."""
+    rows = residual.shape[0]
+    jac_states = np.zeros((rows, 3, 6))
+    for c in range(6):
+        moved = states.copy()
+        moved[:, c] += STATE_STEPS[c]
+        jac_states[:, :, c] = _difference(model, model.residuals(values, moved), residual, STATE_STEPS[c])
+    jac_params = np.zeros((rows, 3, len(free_params)))
+    for k, name in enumerate(free_params):
+        entry = registry.param(name)
+        step = PARAM_STEP * entry.scale
+        low, high = entry.bounds_of(model.cfg)
+        if values[name] + step > high:
+            step = -step
+        moved = dict(values)
+        moved[name] = values[name] + step
+        jac_params[:, :, k] = _difference(model, model.residuals(moved, states), residual, step)
+    return jac_params, jac_states
+
+
+def _normal_blocks(lin, starts):
+    """Per-segment blocks of the weighted normal equations."""
+    w = lin.weight[:, None, None]
+    A, B, r = lin.jac_params, lin.jac_states, lin.residual
+    hss = _segment_sums(np.einsum("rki,rkj->rij", B * w, B), starts)
+    hsp = _segment_sums(np.einsum("rki,rkj->rij", B * w, A), starts)
+    hpp = _segment_sums(np.einsum("rki,rkj->rij", A * w, A), starts)
+    gs = _segment_sums(np.einsum("rki,rk->ri", B * w, r), starts)
+    gp = _segment_sums(np.einsum("rki,rk->ri", A * w, r), starts)
+    return hss, hsp, hpp, gs, gp
+
+
+def _damped_inverse(hss, damping):
+    """Inverse of each segment's state block with Marquardt damping (and a floor for states
+    that the frames do not pin, e.g. a spin nothing depends on)."""
+    diag = np.einsum("sii->si", hss)
+    floor = 1e-12 * np.maximum(diag.max(axis=1, keepdims=True), 1e-30)
+    damped = hss + np.einsum("si,ij->sij", damping * diag + floor, np.eye(6))
+    return np.linalg.inv(damped)
 
 
 @dataclass(frozen=True)
 class FitResult:
     spec: ModelSpec
-    params: dict
-    train_error: float  # m, RMS pose error on the training tracks
-    train_tracks: int
-    evaluations: int
+    params: dict  # name -> value (SI units of the registry)
+    states: np.ndarray  # (segments, 6) file units
+    free: tuple  # names of the fitted parameters
+    cost: float  # robust cost at the solution
+    iterations: int
+    converged: bool
+    at_bound: dict  # name -> bool
 
 
-def fit_spec(cfg, spec, prepared_train, start=None):
-    """Least squares (soft-L1 loss, scale ROBUST_SCALE) of the spec's parameters on the
-    training tracks; returns a FitResult."""
-    from scipy.optimize import least_squares
+def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
+    """Levenberg-Marquardt over ``free`` parameters and all states; returns (values, states,
+    cost, iterations, converged)."""
+    scale = ROBUST_SCALE * model.radius
+    starts = model.seg.starts
+    residual = model.residuals(values, states)
+    cost = _robust_cost(residual, scale)
+    damping = 1e-3
+    converged = False
+    iterations = 0
+    small = 0
+    bounds = [registry.param(name).bounds_of(model.cfg) for name in free]
+    for iterations in range(1, max_iterations + 1):
+        weight = _robust_weights(residual, scale)
+        jac_p, jac_s = _jacobians(model, values, states, residual, free)
+        lin = Linearisation(residual, weight, jac_p, jac_s)
+        hss, hsp, hpp, gs, gp = _normal_blocks(lin, starts)
+        improved = False
+        for _ in range(16):
+            inv = _damped_inverse(hss, damping)
+            step_p = np.zeros(len(free))
+            if free:
+                reduced = hpp.sum(axis=0) - np.einsum("sji,sjk,skl->il", hsp, inv, hsp)
+                grad = gp.sum(axis=0) - np.einsum("sji,sjk,sk->i", hsp, inv, gs)
+                diag = np.diag(reduced).copy()
+                reduced = reduced + np.diag(damping * np.maximum(diag, 1e-30) + 1e-30)
+                step_p = -np.linalg.solve(reduced, grad)
+            step_s = -np.einsum("sij,sj->si", inv, gs + np.einsum("sij,j->si", hsp, step_p))
+            trial_values = dict(values)
+            for k, name in enumerate(free):
+                low, high = bounds[k]
+                trial_values[name] = float(min(max(values[name] + step_p[k], low), high))
+            trial_states = states + step_s
+            trial_residual = model.residuals(trial_values, trial_states)
+            trial_cost = _robust_cost(trial_residual, scale)
+            if trial_cost < cost:
+                improved = True
+                relative = (cost - trial_cost) / max(cost, 1e-300)
+                values, states, residual, cost = trial_values, trial_states, trial_residual, trial_cost
+                used = damping
+                damping = max(damping / 3.0, 1e-7)
+                break
+            damping *= 4.0
+        if not improved:
+            converged = True
+            break
+        # a small gain from a heavily damped step is not convergence: the next, less damped
+        # step may still go far (seen when a new parameter starts at the optimum of the others)
+        small = small + 1 if relative < TOLERANCE else 0
+        if small >= 2 and used <= 1e-2:
+            converged = True
+            break
+    return values, states, cost, iterations, converged
 
-    names = spec.param_names()
-    initial = start_values(cfg, spec)
+
+def fit_spec(cfg, spec, segments, start=None, states=None, fixed=False, max_iterations=MAX_ITERATIONS):
+    """Fit a spec's parameters (unless ``fixed``) and every segment's state.
+
+    ``start`` (name -> value) overrides the config's start values; ``states`` the ballistic
+    guesses. With ``fixed`` only the states are fitted (held-out tracks).
+    """
+    model = ShootingModel(cfg, spec, segments)
+    values = start_values(cfg, spec)
     if start:
-        initial.update({k: v for k, v in start.items() if k in initial})
-        if "speed_restitution" in names and "speed_restitution" not in start:
-            # keep the effective restitution at a typical impact speed where it was, so the
-            # new parameter starts where it can move (a start at k = 0.1 stayed there)
-            initial["speed_restitution"] = SPEED_RESTITUTION_START
-            initial["beta_normal"] = min(start["beta_normal"] * (1.0 + SPEED_RESTITUTION_START * TYPICAL_IMPACT_SPEED), 1.0)
-    bounds = np.array([param_bounds(cfg, name) for name in names]).T
-    x0 = np.clip([initial[name] for name in names], bounds[0] + 1e-9, bounds[1] - 1e-9)
-    model = TrackModel(cfg, spec, prepared_train)
-
-    def residuals(x):
-        return model.residual_vector(dict(zip(names, x)))
-
-    solution = least_squares(
-        residuals, x0, bounds=bounds, loss="soft_l1", f_scale=ROBUST_SCALE, diff_step=1e-3, max_nfev=60 * (len(names) + 1)
-    )
-    values = dict(zip(names, (float(v) for v in solution.x)))
-    return FitResult(spec, values, rms(model.frame_errors(values)), len(prepared_train), int(solution.nfev))
+        values.update({k: v for k, v in start.items() if k in values})
+    states = segments.guess.copy() if states is None else states.copy()
+    free = () if fixed else tuple(spec.param_names())
+    values, states, cost, iterations, converged = _fit(model, values, states, free, max_iterations)
+    at_bound = {}
+    for name in free:
+        low, high = registry.param(name).bounds_of(cfg)
+        span = high - low
+        at_bound[name] = bool(values[name] <= low + 1e-6 * span or values[name] >= high - 1e-6 * span)
+    return FitResult(spec, values, states, free, cost, iterations, converged, at_bound)
 
 
-def held_out_error(cfg, result, prepared_test):
-    """RMS pose error (m) of a fit on held-out tracks."""
-    return rms(TrackModel(cfg, result.spec, prepared_test).frame_errors(result.params))
+def linearise(cfg, fit, segments, free=None):
+    """Jacobians and IRLS weights of a fit at its solution (``free``: parameters to include;
+    default the fitted ones)."""
+    model = ShootingModel(cfg, fit.spec, segments)
+    free = fit.free if free is None else free
+    residual = model.residuals(fit.params, fit.states)
+    weight = _robust_weights(residual, ROBUST_SCALE * model.radius)
+    jac_p, jac_s = _jacobians(model, fit.params, fit.states, residual, free)
+    return Linearisation(residual, weight, jac_p, jac_s)
+
+
+def track_errors(segments, residual):
+    """RMS pose error (m) per track over the rows of its segments."""
+    e2 = np.einsum("ij,ij->i", residual, residual)
+    sums = np.bincount(segments.track_rows, e2, minlength=segments.tracks)
+    counts = np.bincount(segments.track_rows, minlength=segments.tracks)
+    with np.errstate(invalid="ignore"):
+        return np.sqrt(sums / counts)
+
+
+def rms(errors):
+    errors = np.asarray(errors, dtype=float)
+    errors = errors[np.isfinite(errors)]
+    return float(np.sqrt(np.mean(np.square(errors)))) if errors.size else math.nan

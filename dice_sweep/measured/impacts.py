@@ -31,7 +31,8 @@ MIN_FIT_FRAMES = 3  # fewer frames leave no check on a two-parameter fit
 MAX_GAP_FRAMES = 16  # frames an impact may have dropped (the largest seen in flight is 13)
 COARSE_SAMPLES = 8  # samples per frame when following a fit to the table ...
 FINE_SAMPLES = 65  # ... then across two coarse spacings around the crossing
-REST_FRAMES = 10  # last frames of a track that must be still for it to count as at rest
+REST_FRAMES = 10  # last frames of a track that must be still for it to count as at rest ...
+REST_TIME = 0.1  # s ... and at least this long (a die at rest stays still for good)
 REST_ANGLE_RANGE = math.radians(1.0)  # rad, largest spread of the angle over those frames
 REST_MOTION_RANGE = 0.02  # circumradii, largest spread of x and y over those frames
 
@@ -99,21 +100,30 @@ def lowest_height(sides, circumradius, y, phi, table=0.0):
     return np.asarray(y) - support(sides, circumradius, phi, DOWN) - table
 
 
-def rest_pose(x, y, phi, usable, circumradius):
-    """Mean (x, y, phi) over the last ``REST_FRAMES`` frames if the track ends at rest, else None.
+def rest_pose(x, y, phi, usable, circumradius, t=None):
+    """Mean (x, y, phi) over the last frames if the track ends at rest, else None.
 
-    At rest means: those frames are usable, end the track (but for two frames), and spread by
-    less than ``REST_MOTION_RANGE`` R in x and y and ``REST_ANGLE_RANGE`` in angle.
+    At rest means: the last ``REST_FRAMES`` usable frames, and at least the last ``REST_TIME``
+    when the times ``t`` are given, end the track (but for two frames) and spread by less than
+    ``REST_MOTION_RANGE`` R in y and ``REST_ANGLE_RANGE`` in angle. (At 500 Hz ten frames
+    are 20 ms, over which a die still bouncing at a few cm/s looked still.)
     """
     index = np.flatnonzero(usable)
     if index.size < REST_FRAMES or index[-1] < x.size - 3:  # a track may end on two missing frames
         return None
-    last = index[-REST_FRAMES:]
-    still = (
-        np.ptp(x[last]) < REST_MOTION_RANGE * circumradius
-        and np.ptp(y[last]) < REST_MOTION_RANGE * circumradius
-        and np.ptp(phi[last]) < REST_ANGLE_RANGE
-    )
+    count = REST_FRAMES
+    if t is not None:
+        count = max(count, int(np.count_nonzero(t[index] >= t[index[-1]] - REST_TIME)))
+    last = index[-count:]
+    # still: neither a drift (the change of a fitted line over the window) nor a scatter
+    # beyond the ranges; with noise, the range of 25 frames exceeded 1 deg at 0.3 deg a frame
+    # (x may still change: a die lying flat may slide on a slippery table)
+    frames = np.arange(last.size, dtype=float)
+    still = True
+    for values, limit in ((y[last], REST_MOTION_RANGE * circumradius), (phi[last], REST_ANGLE_RANGE)):
+        slope, intercept = np.polyfit(frames, values, 1)
+        scatter = np.std(values - (slope * frames + intercept))
+        still = still and abs(slope) * frames[-1] < limit and scatter < limit
     return (float(np.mean(x[last])), float(np.mean(y[last])), float(np.mean(phi[last]))) if still else None
 
 

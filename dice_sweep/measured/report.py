@@ -2,21 +2,15 @@
 
 import json
 import math
+import os
 from pathlib import Path
 
 import numpy as np
 
+from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.measured.diagnose import METRIC, diagnose
-from dice_sweep.measured.fit import (
-    EFFECTS,
-    ModelSpec,
-    TrackModel,
-    declared_effects,
-    fit_spec,
-    held_out_error,
-    prepare_tracks,
-)
+from dice_sweep.measured import diagnose as loop
+from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.tracks import load_tracks
 
 
@@ -25,107 +19,231 @@ def _load(data_path, cfg, rate, angle):
 
 
 def parse_effects(text):
-    """``a,b`` -> ('a', 'b'), each a known effect (DiceSweepError naming --effects otherwise)."""
+    """``a,b`` -> ('a', 'b'), each an effect of the registry (DiceSweepError naming --effects)."""
     names = tuple(name.strip() for name in text.split(",") if name.strip()) if text else ()
-    unknown = [name for name in names if name not in EFFECTS]
+    unknown = [name for name in names if name not in registry.names()]
     if unknown:
-        raise DiceSweepError(f"--effects: unknown effect {unknown[0]!r} (allowed: {', '.join(EFFECTS)})")
+        raise DiceSweepError(f"--effects: unknown effect {unknown[0]!r} (allowed: {', '.join(registry.names())})")
     return names
 
 
-def run_fit(data_path, cfg, *, effects=(), rate=None, angle="auto", json_path=None, png_dir=None):
-    """Fit the declared model plus ``effects`` on the training split, score on the held-out
-    split; returns the result dict (written to ``json_path`` if given)."""
+def check_outputs(**paths):
+    """One-line error, before any work, for an output whose folder does not exist."""
+    for option, path in paths.items():
+        if not path:
+            continue
+        folder = Path(path) if option == "png" else Path(path).parent
+        if option == "png" and folder.exists() and not folder.is_dir():
+            raise DiceSweepError(f"--{option}: {path} is a file (allowed: a folder, created if missing)")
+        if option != "png" and not (folder if str(folder) else Path(".")).is_dir():
+            raise DiceSweepError(f"--{option}: {path}: folder {folder} does not exist (allowed: a path in an existing folder)")
+
+
+def _write_atomic(path, text):
+    """Write a whole file or nothing (a killed run leaves no half-written report)."""
+    tmp = Path(f"{path}.partial")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return None if not math.isfinite(float(value)) else float(value)
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=None, png_dir=None, seed=0):
+    """Fit the declared model plus ``effects`` on the selection tracks (multiple shooting),
+    with 95 % bootstrap intervals over tracks, and score it on the confirmation tracks."""
+    check_outputs(json=json_path, png=png_dir)
     trackset = _load(data_path, cfg, rate, angle)
-    train_set, test_set = trackset.split()
-    train = prepare_tracks(train_set, cfg)
-    test = prepare_tracks(test_set, cfg)
-    extra = tuple(e for e in effects if e not in declared_effects(cfg))
-    fit = fit_spec(cfg, ModelSpec(extra), train)
+    noise = loop.noise_floor(trackset, cfg)
+    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+    select_set, confirm_set = trackset.split(loop.CONFIRM_FRACTION, seed)
+    select = shooting.prepare_tracks(select_set, cfg, noise=sigma)
+    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma)
+    if len(select) < loop.MIN_TRACKS or not confirm:
+        raise DiceSweepError(f"{data_path}: tracks: {len(select)} fitting and {len(confirm)} scoring tracks have a first free flight "
+                             f"of {shooting.MIN_FLIGHT_FRAMES} frames or more (allowed: at least {loop.MIN_TRACKS} and 1)")
+    rng = np.random.default_rng(seed)
+    seg_select = shooting.Segments(select, cfg.world.g)
+    seg_confirm = shooting.Segments(confirm, cfg.world.g)
+    declared = registry.declared_effects(cfg)
+    extra = tuple(e for e in effects if e not in declared)
+    spec = shooting.ModelSpec.of(cfg, extra)
+    fit = shooting.fit_spec(cfg, spec, seg_select)
+    red = loop._reduce(shooting.linearise(cfg, fit, seg_select), seg_select)
+    draws = loop.bootstrap_params(red, list(fit.free), fit.params, cfg, rng)
+    e_train = shooting.track_errors(seg_select, shooting.ShootingModel(cfg, spec, seg_select).residuals(fit.params, fit.states))
+    e_test, _ = loop._confirm(cfg, fit, seg_confirm)
     result = {
-        "metric": METRIC,
-        "model": "rigid" if "corner_impulse" in extra else cfg.contact.model,
-        "effects": list(declared_effects(cfg)) + list(extra),
-        "params": fit.params,
-        "train_error": fit.train_error,
-        "test_error": held_out_error(cfg, fit, test),
-        "train_tracks": len(train),
-        "test_tracks": len(test),
-        "angle_convention": trackset.angle_note,
+        "metric": loop.METRIC,
+        "model": cfg.contact.model if "corner_impulse" not in extra else "rigid",
+        "effects": list(declared) + list(extra),
+        "params": loop._describe_params(fit, draws, cfg),
+        "train_error": shooting.rms(e_train),
+        "test_error": shooting.rms(e_test),
+        "ci95": loop.bootstrap_rms(e_test, rng),
+        "noise_floor": noise["pose"],
+        "train_tracks": len(select),
+        "test_tracks": len(confirm),
+        "converged": fit.converged,
+        "angle_reading": trackset.angle_note,
         "glitch_frames": trackset.glitch_count,
     }
     if json_path:
-        Path(json_path).write_text(json.dumps(result, indent=2) + "\n")
+        _write_atomic(json_path, json.dumps(_jsonable(result), indent=2) + "\n")
     if png_dir:
-        _residual_pictures(cfg, [("fit", fit)], test, Path(png_dir))
+        _residual_pictures(cfg, [("fit", fit)], confirm, seg_confirm, Path(png_dir))
     return result
 
 
-def run_diagnose(data_path, cfg, *, rate=None, angle="auto", json_path=None, md_path=None, png_dir=None, log=None):
-    """The whole loop on a data file; writes REPORT.json (and Markdown, pictures) and returns it."""
+def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md_path=None, png_dir=None, log=None, **options):
+    """The whole loop on a data file; writes REPORT.json (Markdown and pictures if asked)."""
+    check_outputs(json=json_path, md=md_path, png=png_dir)
     trackset = _load(data_path, cfg, rate, angle)
-    report = diagnose(trackset, cfg, log=log, keep_fits=bool(png_dir))
+    report = loop.diagnose(trackset, cfg, log=log, angle_reading=f"--angle {angle}: {trackset.angle_note}", **options)
     fits = report.pop("_fits")
+    report["by_bounce"] = residual_by_bounce(cfg, fits)
     if png_dir:
-        _, test_set = trackset.split()
-        _residual_pictures(cfg, fits, prepare_tracks(test_set, cfg), Path(png_dir))
-        report["pictures"] = sorted(str(p) for p in Path(png_dir).glob("residual_*.png"))
+        _, seg_confirm = fits["segments"]
+        _, confirm = fits["prepared"]
+        report["pictures"] = _residual_pictures(cfg, [("baseline", fits["baseline"]), ("after", fits["after"])], confirm, seg_confirm, Path(png_dir))
+    report = _jsonable(report)
     if json_path:
-        Path(json_path).write_text(json.dumps(report, indent=2, default=float) + "\n")
+        _write_atomic(json_path, json.dumps(report, indent=2) + "\n")
     if md_path:
-        Path(md_path).write_text(markdown_report(report))
+        _write_atomic(md_path, markdown_report(report))
     return report
 
 
-def _residual_pictures(cfg, fits, prepared_test, png_dir):
+def residual_by_bounce(cfg, fits):
+    """RMS error (m) of the confirmation tracks' frames predicted through impact k (k = 1, 2,
+    ...), before and after, with the number of tracks."""
+    seg_confirm = fits["segments"][1]
+    out = []
+    residuals = {}
+    for label in ("baseline", "after"):
+        fit = fits[label]
+        held = shooting.fit_spec(cfg, fit.spec, seg_confirm, start=fit.params, fixed=True)
+        residuals[label] = shooting.ShootingModel(cfg, fit.spec, seg_confirm).residuals(held.params, held.states)
+    # segment index within its track = which impact its prediction crosses
+    index = np.zeros(seg_confirm.count, dtype=np.int64)
+    for i in range(seg_confirm.tracks):
+        mine = np.flatnonzero(seg_confirm.track == i)
+        index[mine] = np.arange(mine.size)
+    bounce_of_row = index[seg_confirm.segment_rows] + 1
+    for k in range(1, int(bounce_of_row.max(initial=0)) + 1):
+        rows = seg_confirm.predicted & (bounce_of_row == k)
+        if not rows.any():
+            continue
+        entry = {"impact": k, "tracks": int(np.unique(seg_confirm.track_rows[rows]).size)}
+        for label, residual in residuals.items():
+            entry[label] = float(np.sqrt(np.mean(np.sum(residual[rows] ** 2, axis=1))))
+        out.append(entry)
+    return out
+
+
+def _residual_pictures(cfg, fits, prepared, segments, png_dir):
     """Per-frame pose error against time from the first impact, one curve per fit."""
     from dice_sweep.plotting import plot_residual_curves
 
     png_dir.mkdir(parents=True, exist_ok=True)
     curves = []
+    t_impact = np.array([p.t_impact for p in prepared])
     for label, fit in fits:
-        model = TrackModel(cfg, fit.spec, prepared_test)
-        errors = model.frame_errors(fit.params)
-        since_impact = model.times - np.array([p.t_impact for p in prepared_test])[model.track_of_frame]
-        curves.append((label, since_impact, errors))
-    plot_residual_curves(curves, png_dir / "residual_error_vs_time.png")
+        held = shooting.fit_spec(cfg, fit.spec, segments, start=fit.params, fixed=True)
+        residual = shooting.ShootingModel(cfg, fit.spec, segments).residuals(held.params, held.states)
+        errors = np.sqrt(np.sum(residual**2, axis=1))
+        seg_t0 = np.array([prepared[segments.track[j]].t[prepared[segments.track[j]].flights[k][0]]
+                           for j, k in zip(range(segments.count), _flight_index(segments))])
+        since = segments.times + seg_t0[segments.segment_rows] - t_impact[segments.track_rows]
+        curves.append((label, since, errors))
+    path = png_dir / "residual_error_vs_time.png"
+    plot_residual_curves(curves, path)
+    return [str(path)]
+
+
+def _flight_index(segments):
+    index = np.zeros(segments.count, dtype=np.int64)
+    for i in range(segments.tracks):
+        mine = np.flatnonzero(segments.track == i)
+        index[mine] = np.arange(mine.size)
+    return index
 
 
 def _mm(value):
-    return "n/a" if value is None or not math.isfinite(value) else f"{value * 1000:.2f} mm"
+    return "n/a" if value is None or not math.isfinite(value) else f"{value * 1000:.3f} mm"
+
+
+def _interval(entry, scale=1000.0, unit="mm"):
+    low, high = entry
+    if low is None or high is None:
+        return "n/a"
+    return f"[{low * scale:.3f}, {high * scale:.3f}] {unit}"
+
+
+def _params_table(params):
+    lines = ["| parameter | value | 95 % interval | unit | at a bound |", "|---|---|---|---|---|"]
+    for name, p in params.items():
+        ci = p["ci95"]
+        ci_text = "n/a" if ci[0] is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
+        lines.append(f"| {name} | {p['value']:.4g} | {ci_text} | {p['unit']} | {'yes' if p['at_bound'] else 'no'} |")
+    return lines
 
 
 def markdown_report(report):
-    """A readable summary of a diagnose report."""
-    lines = ["# Diagnosis of tracked drops", "", f"Metric: {report['metric']}.", "", f"Selection: {report['selection']}.", ""]
+    """A readable summary of a diagnose report (works for any number of tracks)."""
+    floor = report["noise_floor"]
+    lines = ["# Diagnosis of tracked drops", "",
+             f"**Verdict: {report['verdict']}.** Effects added: {', '.join(report['effects_added']) or 'none'}.", "",
+             f"Metric: {report['metric']}.", "", f"Selection: {report['selection']}.", ""]
     data = report["data"]
-    lines += [f"Data: {data['path']}: {data['tracks']} tracks at {data['rate_hz']:g} Hz; "
-              f"{data['train_tracks_used']} training and {data['test_tracks_used']} held-out tracks usable; "
-              f"{data['glitch_frames']} glitch frames in {data['glitch_tracks']} tracks excluded; {data['robust_loss']}.",
-              f"Angle convention: {data['angle_convention']}", ""]
-    base = report["baseline"]
-    lines += ["## Baseline", "", f"Model {base['model']}, effects {base['effects'] or 'none'}: "
-              f"train {_mm(base['train_error'])}, held-out {_mm(base['test_error'])}; params "
-              + ", ".join(f"{k} = {v:.4g}" for k, v in base["params"].items()), "", "## Residual signatures", "",
-              "| signature | value | unit | points to | meaning |", "|---|---|---|---|---|"]
-    lines += [f"| {s['signature']} | {s['value']:.4g} | {s['unit']} | {s['points_to']} | {s['note']} |" for s in report["signatures"]]
-    lines += ["", "## Candidates (first round)", "", "| effect | held-out error | params |", "|---|---|---|"]
-    lines += [f"| {c['effect']} | {_mm(c['test_error'])} | " + ", ".join(f"{k} = {v:.4g}" for k, v in c["params"].items()) + " |"
-              for c in report["candidates"]]
-    lines += ["", "## Chain", ""]
-    lines += [f"{step['step']}. best {step['best']}: held-out {_mm(step['test_error'])} "
-              f"({step['gain']:+.1%}) -> {'added' if step['accepted'] else 'not added (below the threshold)'}" for step in report["chain"]]
-    after = report["after"]
-    fiv = report["first_impact_velocity_error"]
-    side = report["final_side_agreement"]
-    lines += ["", "## After", "", f"Effects {after['effects'] or 'none'}: held-out {_mm(after['test_error'])}; params "
-              + ", ".join(f"{k} = {v:.4g}" for k, v in after["params"].items()),
-              "", f"First-impact velocity error: {fiv['before']:.3f} m/s before, {fiv['after']:.3f} m/s after.",
-              f"Simulated resting side equals the tracked one: {side['before']:.0%} before, {side['after']:.0%} after "
-              f"({side['tracks']} held-out tracks at rest at their end).",
-              "Spin after the first impact, simulated against tracked (held-out tracks): "
-              + "; ".join(f"{when}: same sign in {spin['sign_agreement']:.0%}, correlation {spin['correlation']:.2f}, "
-                          f"tracked {spin['measured_range_rad_s'][0]:.1f} to {spin['measured_range_rad_s'][1]:.1f} rad/s, "
-                          f"simulated {spin['simulated_range_rad_s'][0]:.1f} to {spin['simulated_range_rad_s'][1]:.1f} rad/s"
-                          for when, spin in report["first_impact_spin"].items()) + ".", ""]
-    return "\n".join(lines)
+    noise = report["noise"]
+    lines += [f"Data: {data['path']}: {data['tracks']} tracks at {data['rate_hz']:g} Hz; {data['selection_tracks']} selection tracks "
+              f"({data['selection_flights']} flights) and {data['confirmation_tracks']} confirmation tracks ({data['confirmation_flights']} flights) usable; "
+              f"{data['glitch_frames']} glitch frames excluded, {data['gap_frames']} dropped frames re-inserted.", "",
+              f"Angle: {report['angle_reading']}", "",
+              f"Tracking noise (free flights): sigma x {noise['sigma_x'] * 1e3:.4f} mm, y {noise['sigma_y'] * 1e3:.4f} mm, "
+              f"phi {noise['sigma_phi'] * 1e3:.3f} mrad; noise floor {_mm(floor)} (95 % {_interval(noise['pose_ci95'])}).", "",
+              "## Before and after, on confirmation tracks", "",
+              "| model | effects | RMS over tracks | 95 % interval | x floor | median track | 95 % interval | x floor |",
+              "|---|---|---|---|---|---|---|---|"]
+    for label in ("baseline", "after"):
+        entry = report[label]
+        lines.append(f"| {label} | {', '.join(entry['effects']) or 'none'} | {_mm(entry['test_error'])} | {_interval(entry['ci95'])} | "
+                     f"{entry['multiple_of_floor']:.1f} | {_mm(entry['median_error'])} | {_interval(entry['median_ci95'])} | "
+                     f"{entry['median_multiple_of_floor']:.1f} |")
+    lines += ["", f"Verdict rule: {report['verdict_rule']}."]
+    lines += ["", "## Parameters after", ""] + _params_table(report["after"]["params"])
+    lines += ["", "## Rounds", ""]
+    for k, rnd in enumerate(report["rounds"], 1):
+        lines += [f"Round {k}: threshold z = {rnd['threshold_z']:.2f} (Sidak bound {rnd['sidak_z']:.2f}, {rnd['null_simulations']} null simulations).", "",
+                  "| effect | held-out error | z | share of excess | null excluded | at bound | added |", "|---|---|---|---|---|---|---|"]
+        for c in rnd["candidates"]:
+            lines.append(f"| {c['effect']} | {_mm(c['test_error'])} | {c['z']:.2f} | {c['excess_share']:.0%} | "
+                         f"{'yes' if c['null_excluded'] else 'no'} | {', '.join(c['at_bound']) or '-'} | {'yes' if c['accepted'] else 'no'} |")
+        lines.append("")
+    if report.get("by_bounce"):
+        lines += ["## Error by impact (confirmation tracks, frames predicted through impact k)", "",
+                  "| impact | tracks | before | after |", "|---|---|---|---|"]
+        lines += [f"| {b['impact']} | {b['tracks']} | {_mm(b['baseline'])} | {_mm(b['after'])} |" for b in report["by_bounce"]]
+        lines.append("")
+    lines += ["## Residual signatures after", "", "| signature | value | 95 % interval | unit | points to | meaning |", "|---|---|---|---|---|---|"]
+    for s in report["signatures"]:
+        value = "n/a" if s["value"] is None else f"{s['value']:.4g}"
+        ci = "n/a" if s["ci95"][0] is None else f"[{s['ci95'][0]:.4g}, {s['ci95'][1]:.4g}]"
+        lines.append(f"| {s['signature']} | {value} | {ci} | {s['unit']} | {', '.join(s['points_to'])} | {s['note']} |")
+    if report["verdict"] != "explained":
+        remaining = report.get("signatures_remaining") or []
+        lines += ["", f"**Not explained:** the median track error after is {report['after']['median_multiple_of_floor']:.1f} times the noise floor. "
+                  + (f"Signatures left (interval excludes 0): {', '.join(remaining)}." if remaining else "No flight signature is left; the misfit is at the impacts.")]
+    return "\n".join(lines) + "\n"

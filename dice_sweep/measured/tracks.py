@@ -35,7 +35,7 @@ from dice_sweep.measured.impacts import rest_pose, table_level, track_impacts
 
 __all__ = ["Track", "TrackSet", "load_tracks", "ANGLE_MODES", "GAP_MODES"]
 
-ANGLE_MODES = ("auto", "as-is")
+ANGLE_MODES = ("as-is", "auto")
 GAP_MODES = ("auto", "as-is")
 
 # Glitches: a step whose pose residual (against the local median motion) exceeds this angle
@@ -497,11 +497,11 @@ def _balance_misfits(raws, sides, circumradius, offset, table):
     return np.array(misfits).reshape(-1, 2, 2)
 
 
-def _angle_convention(raws, sides, circumradius):
+def _angle_convention(raws, sides, circumradius, path):
     """(sign, offset, note) turning the file's angle into the model's phi."""
     period = 2.0 * math.pi / sides
     flat = _flat_phase(sides)
-    rests = [p for p in (rest_pose(raw["pose"][:, 0], raw["pose"][:, 1], raw["pose"][:, 2] / circumradius, _track_arrays(raw, circumradius, 0.0)[4], circumradius) for raw in raws) if p is not None]
+    rests = [p for p in (rest_pose(raw["pose"][:, 0], raw["pose"][:, 1], raw["pose"][:, 2] / circumradius, _track_arrays(raw, circumradius, 0.0)[4], circumradius, raw["t"]) for raw in raws) if p is not None]
     if rests:
         residual = _wrap(np.array([p[2] for p in rests]), period)
         median_residual = float(np.median(residual))
@@ -511,8 +511,12 @@ def _angle_convention(raws, sides, circumradius):
             f"(IQR {math.degrees(q25):+.2f} to {math.degrees(q75):+.2f}) off a multiple of {math.degrees(period):g} deg is flat"
         )
     else:
-        median_residual = 0.0
-        rest_text = "zero: not measured, no track ends at rest, so a file angle 0 is taken as flat"
+        # the zero is measured only from dice at rest: no guess (a guess was pi/n off and the
+        # sign test then called the wrong sign clear)
+        raise DiceSweepError(
+            f"{path}: --angle auto: no track ends at rest, so the angle's zero cannot be measured "
+            "(allowed: --angle as-is, the file's phi is the model's angle, or a file with tracks that end at rest)"
+        )
     offset_plus = flat - median_residual
     # the lowest corner's height is the same for both signs: find the table with sign +1
     table = table_level([(p[0], p[1], p[2] + offset_plus) for p in rests], sides=sides, circumradius=circumradius)
@@ -574,7 +578,7 @@ def _prepare_track(t, x, y, angle, rate, sides, circumradius, gaps):
     return {"t": grid_t, "pose": grid_pose, "glitch": glitch, "inserted": int(inserted.sum()), "relabels": relabels, "unpaired": unpaired}
 
 
-def load_tracks(path, *, sides, circumradius, rate=None, angle="auto", gaps="auto"):
+def load_tracks(path, *, sides, circumradius, rate=None, angle="as-is", gaps="auto"):
     """Read measured tracks, re-time dropped frames, flag glitches and find the angle convention.
 
     Parameters
@@ -588,9 +592,11 @@ def load_tracks(path, *, sides, circumradius, rate=None, angle="auto", gaps="aut
     rate : float, optional
         Frame rate, Hz: needed with a ``frame`` column and no ``t``. Default: the median rate
         of the file's times.
-    angle : {"auto", "as-is"}
-        "auto" finds the sign and zero of the file's angle (docs/calibration.md); "as-is"
-        uses the file's angle unchanged (sign +1, offset 0).
+    angle : {"as-is", "auto"}
+        "as-is" (the default) takes the file's angle as the model's phi (sign +1, offset 0), as
+        the file format says; "auto" measures the sign and zero of the file's angle
+        (docs/calibration.md) and refuses when no track ends at rest (the zero is then not
+        measured).
     gaps : {"auto", "as-is"}
         "auto" inserts NaN frames where frames were dropped; "as-is" keeps the file's times.
 
@@ -622,7 +628,7 @@ def load_tracks(path, *, sides, circumradius, rate=None, angle="auto", gaps="aut
             track_angle = _unwrap_finite(track_angle)
         raws.append(_prepare_track(t[rows], x[rows], y[rows], track_angle, rate, sides, circumradius, gaps))
     if angle == "auto":
-        sign, offset, note = _angle_convention(raws, sides, circumradius)
+        sign, offset, note = _angle_convention(raws, sides, circumradius, path)
     else:
         sign, offset, note = 1, 0.0, "as-is: the file's angle is used unchanged (sign +1, offset 0)"
     tracks = tuple(

@@ -540,6 +540,9 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
     seg = 0
     start = np.empty(6)
     com = np.empty(6)
+    flight_seg = -1  # the flight segment last sampled, its time and state (drag)
+    flight_tau = 0.0
+    flight_state_at = np.empty(6)
     for i in range(times.shape[0]):
         t = times[i]
         while seg + 1 < n_rec and rec[seg + 1, REC_T] <= t:
@@ -572,8 +575,17 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             _slide(com, fpar, tau)
         elif rec[seg, REC_KIND] == SEG_END:
             com[:] = start  # the simulation stopped here (decided, at rest, or out of time)
+        elif fpar[FP_DRAG] > 0.0 and seg == flight_seg and tau >= flight_tau:
+            # with drag a flight is integrated: go on from the previous sample of the same
+            # flight instead of from its start (a fit samples ~50 frames per flight)
+            advance_flight(flight_state_at, tau - flight_tau, fpar, com)
+            flight_state_at[:] = com
+            flight_tau = tau
         else:
             advance_flight(start, tau, fpar, com)
+            flight_seg = seg
+            flight_tau = tau
+            flight_state_at[:] = com
         shift_reference(com, fpar, -1.0, out[i])
 
 

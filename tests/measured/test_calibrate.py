@@ -53,7 +53,7 @@ def calibrated(tmp_path, law, *, sign, glitch_before_impact=None):
         first_contact = np.argmax(lowest_height(4, drops.RADIUS, truth[:, :, 1], truth[:, :, 2]) < 1e-3, axis=1)
         glitches = {drop: int(frame) - glitch_before_impact for drop, frame in enumerate(first_contact)}
     file_tracks = drops.to_file(times, truth, seed=6, sign=sign, glitches=glitches)
-    trackset = load_tracks(drops.write_csv(tmp_path / "drops.csv", file_tracks), sides=4, circumradius=drops.RADIUS)
+    trackset = load_tracks(drops.write_csv(tmp_path / "drops.csv", file_tracks), sides=4, circumradius=drops.RADIUS, angle="auto")
     return trackset, calibrate(trackset, cfg)
 
 
@@ -101,7 +101,7 @@ def test_calibrate_command_writes_json_and_png(tmp_path):
     config.write_text(f"[die]\nsides = 4\ncircumradius = {drops.RADIUS!r}\n")
     runner = CliRunner()
     out_json, out_png = tmp_path / "cal.json", tmp_path / "cal.png"
-    result = runner.invoke(main, ["calibrate", str(data), "--config", str(config), "--json", str(out_json), "--png", str(out_png)])
+    result = runner.invoke(main, ["calibrate", str(data), "--config", str(config), "--angle", "auto", "--json", str(out_json), "--png", str(out_png)])
     assert result.exit_code == 0, result.output
     assert "beta_normal" in result.output and out_png.stat().st_size > 10_000
     report = json.loads(out_json.read_text())

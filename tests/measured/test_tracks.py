@@ -35,6 +35,7 @@ def file_tracks(simulated):
 
 
 def load(path, **options):
+    options.setdefault("angle", "auto")  # these tests are about finding the convention
     return load_tracks(path, sides=4, circumradius=drops.RADIUS, **options)
 
 
@@ -123,7 +124,7 @@ def real_tracks():
     """The shared real drops, loaded once per test run (test_calibrate uses them too)."""
     if not REAL_DATA.exists():
         pytest.skip(f"{REAL_DATA} is not here")
-    return load_tracks(REAL_DATA, sides=4, circumradius=0.06 / math.sqrt(2))
+    return load_tracks(REAL_DATA, sides=4, circumradius=0.06 / math.sqrt(2), angle="auto")
 
 
 def file_jumps(path, limit=math.radians(45.0)):

@@ -1,0 +1,582 @@
+"""Synthetic tracked drops of a 2-D regular n-gon plate, written independently of the kernel.
+
+This module re-implements the die's physics from the specification (docs/physics.md and
+Smith 2014, eqs 6-13 and 25) with numpy, scipy and the standard library only. It imports
+nothing from ``dice_sweep``, so tracks made here can test the model-fitting and diagnosis loop
+against a truth that does not share the kernel's code (or its bugs). Only the test file
+compares it with the kernel.
+
+What is simulated
+-----------------
+* Flight of the centre of mass (COM) under gravity, in closed form, or, when air drag, spin
+  damping or the Magnus force is on, by scipy's DOP853 (rtol 1e-12) for the translation while
+  the rotation stays in closed form.
+* Impacts of one corner with the table (y = 0), by the ``paper`` law (eqs 9-13, with the
+  documented fallback for its "undefined case 1") or the ``rigid`` corner impulse (Newton
+  restitution, tangential restitution, Coulomb cap on the cone edge on the target's side, the
+  energy rule). Contacts are located by conservative advancement on a lower bound of each
+  corner's height, to a height of 1e-12 R, i.e. a time error far below 1e-9 s.
+* Effects of the project's library: quadratic air drag on the COM, a loaded die (COM offset in
+  the body frame), speed-dependent normal restitution. Effects outside it: spin damping and a
+  Magnus force in flight. Measurement effects: a wrong clock, a wrong length scale and an angle
+  offset, then Gaussian noise, dropped frames and one-frame glitches.
+
+What is not simulated
+---------------------
+Sustained contact (resting, rocking about a corner, sliding flat) is not simulated. A track
+ends at an impact whose normal approach speed is below ``min_bounce_speed``, at a landing of two
+corners at once, when an impulse would leave the touching corner without a rebound or drive a
+second touching corner into the table, or at ``duration``. Tracks therefore do **not** end with
+the die at rest; they stop while it is still bouncing.
+
+Conventions
+-----------
+SI units. y is the height of the geometric centre above the table (table at y = 0). phi is the
+angle of corner 0 seen from the geometric centre, counterclockwise; corner k is at
+phi + 2 pi k / n. A track reports the geometric centre (where a tracker sees the die's centre
+mark); the dynamics follow the COM, which for a loaded die sits at ``com_offset`` from the
+centre in the body frame (corner 0 along the body's +x axis).
+"""
+
+import csv
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+__all__ = ["Truth", "Path", "simulate_path", "simulate_track", "simulate_drops", "write_csv", "impact", "energy"]
+
+CONTACT_TOL = 1e-12  # of R: an approaching corner this close to the table touches it
+SECOND_CORNER_TOL = 1e-9  # of R: another corner this close at an impact also touches
+REBOUND_MIN = 1e-9  # m/s: a touching corner leaving slower than this is sustained contact
+MAX_SEARCH_STEPS = 200_000  # conservative steps in one flight before giving up
+NUMERIC_MAX_STEP = 1e-3  # s: longest conservative step when the acceleration bound is not exact
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The true physics of the synthetic drops and the tracker's view of them (SI units)."""
+
+    sides: int = 4
+    circumradius: float = 0.06 / math.sqrt(2)  # m
+    g: float = 9.81  # m/s^2
+    contact: str = "rigid"  # "rigid" or "paper"
+    beta_normal: float = 0.4
+    beta_tangential: float = 0.0
+    friction: float = math.inf  # Coulomb coefficient (cap of the corner impulse)
+    air_drag: float = 0.0  # 1/m, a = -c |v| v on the centre of mass
+    com_offset: tuple = (0.0, 0.0)  # m, body frame (corner 0 along +x)
+    speed_restitution: float = 0.0  # s/m, beta_normal / (1 + k |u_n|)
+    # measurement effects (what the tracker reports):
+    angle_offset: float = 0.0  # rad, file phi = phi + offset
+    time_scale: float = 1.0  # file t = t_true * time_scale (a clock that runs wrong)
+    length_scale: float = 1.0  # file x, y = true x, y * length_scale; y measured from the table
+    # physics OUTSIDE the project's effect library (for "unexplained" tests):
+    spin_damping: float = 0.0  # 1/s, in flight d(omega)/dt = -k omega
+    magnus: float = 0.0  # 1, in flight a = k * (omega z-hat x v) = k * omega * (-vy, vx)
+
+
+class _Die:
+    """Geometry and inertia of the plate, per unit mass, seen from its centre of mass.
+
+    Parameters
+    ----------
+    truth : Truth
+        The die and its physics.
+    """
+
+    def __init__(self, truth):
+        if truth.contact not in ("rigid", "paper"):
+            raise ValueError(f"contact must be 'rigid' or 'paper', not {truth.contact!r}")
+        n, radius = int(truth.sides), float(truth.circumradius)
+        if n < 3:
+            raise ValueError("a plate needs at least 3 sides")
+        self.n, self.radius = n, radius
+        # Smith 2014 eq 25: I = M R^2 (sin^2(pi/n)/6 + cos^2(pi/n)/2) about the geometric centre
+        alpha_centre = math.sin(math.pi / n) ** 2 / 6.0 + math.cos(math.pi / n) ** 2 / 2.0
+        self.d = np.array(truth.com_offset, dtype=float)
+        if np.hypot(*self.d) >= radius * math.cos(math.pi / n):
+            raise ValueError("com_offset must lie inside the inscribed circle")
+        # parallel-axis rule: I_com = I - M |d|^2 (per unit mass, m^2)
+        self.inertia = alpha_centre * radius**2 - float(self.d @ self.d)
+        self.alpha = self.inertia / radius**2  # I_com / (M R^2), the paper law's alpha
+        body = radius * np.column_stack([np.cos(2 * np.pi * np.arange(n) / n), np.sin(2 * np.pi * np.arange(n) / n)])
+        body = body - self.d  # corners seen from the COM, body frame
+        self.rho = np.hypot(body[:, 0], body[:, 1])  # m, distance of each corner from the COM
+        self.gamma = np.arctan2(body[:, 1], body[:, 0])  # rad, its body angle
+
+    def offset(self, phi):
+        """The COM seen from the geometric centre in the world frame at angle ``phi`` (m)."""
+        c, s = math.cos(phi), math.sin(phi)
+        return np.array([c * self.d[0] - s * self.d[1], s * self.d[0] + c * self.d[1]])
+
+    def to_com(self, centre_state):
+        """(x, y, phi, vx, vy, omega) of the geometric centre -> the same of the COM."""
+        x, y, phi, vx, vy, w = (float(v) for v in centre_state)
+        ox, oy = self.offset(phi)
+        return np.array([x + ox, y + oy, phi, vx - w * oy, vy + w * ox, w])
+
+    def to_centre(self, com_state):
+        """(x, y, phi, vx, vy, omega) of the COM -> the same of the geometric centre."""
+        x, y, phi, vx, vy, w = (float(v) for v in com_state)
+        ox, oy = self.offset(phi)
+        return np.array([x - ox, y - oy, phi, vx + w * oy, vy - w * ox, w])
+
+    def corners(self, com_state):
+        """Corner positions relative to the COM, (n, 2) in m, for a COM state."""
+        ang = com_state[2] + self.gamma
+        return self.rho[:, None] * np.column_stack([np.cos(ang), np.sin(ang)])
+
+
+def energy(truth, com_state):
+    """Specific mechanical energy (J/kg) of a COM state: translation, rotation about the COM,
+    and height of the COM.
+
+    Parameters
+    ----------
+    truth : Truth
+    com_state : array_like
+        (x, y, phi, vx, vy, omega) of the centre of mass.
+    """
+    die = _Die(truth)
+    _, y, _, vx, vy, w = com_state
+    return 0.5 * (vx * vx + vy * vy) + 0.5 * die.inertia * w * w + truth.g * y
+
+
+# ----------------------------------------------------------------------------------- flight
+
+
+class _Flight:
+    """Free flight of the COM from time ``t0`` and COM state ``s0`` up to ``t_stop``.
+
+    Without drag, spin damping or Magnus force the flight is Smith's closed form (eqs 6-8).
+    Otherwise the translation is integrated by DOP853 with dense output; the rotation is in
+    closed form either way (spin damping only: omega = omega0 exp(-k t)).
+    """
+
+    def __init__(self, truth, t0, s0, t_stop):
+        self.truth = truth
+        self.t0 = float(t0)
+        self.s0 = np.array(s0, dtype=float)
+        self.k_spin = float(truth.spin_damping)
+        self.numeric = truth.air_drag != 0.0 or truth.magnus != 0.0
+        self.sol = None
+        if self.numeric and t_stop > self.t0:
+            c, km, g = float(truth.air_drag), float(truth.magnus), float(truth.g)
+            w0, k = self.s0[5], self.k_spin
+
+            def rhs(tau, u):
+                vx, vy = u[2], u[3]
+                w = w0 * math.exp(-k * tau)
+                sp = math.hypot(vx, vy)
+                return [vx, vy, -c * sp * vx - km * w * vy, -g - c * sp * vy + km * w * vx]
+
+            u0 = [self.s0[0], self.s0[1], self.s0[3], self.s0[4]]
+            self.sol = solve_ivp(rhs, (0.0, t_stop - self.t0), u0, method="DOP853", rtol=1e-12,
+                                 atol=1e-15, dense_output=True)
+            if not self.sol.success:
+                raise RuntimeError(f"flight integration failed: {self.sol.message}")
+
+    def rotation(self, tau):
+        """(phi, omega, d omega/dt) at ``tau`` s after the start of the flight."""
+        phi0, w0, k = self.s0[2], self.s0[5], self.k_spin
+        if k == 0.0:
+            return phi0 + w0 * tau, w0, 0.0
+        # expm1 keeps (1 - exp(-k tau))/k exact for small k tau
+        return phi0 - w0 * math.expm1(-k * tau) / k, w0 * math.exp(-k * tau), -k * w0 * math.exp(-k * tau)
+
+    def state(self, t):
+        """COM state (x, y, phi, vx, vy, omega) at absolute time ``t``."""
+        tau = t - self.t0
+        phi, w, _ = self.rotation(tau)
+        if self.sol is None:
+            x0, y0, _, vx0, vy0, _ = self.s0
+            g = self.truth.g
+            return np.array([x0 + vx0 * tau, y0 + vy0 * tau - 0.5 * g * tau * tau, phi, vx0, vy0 - g * tau, w])
+        x, y, vx, vy = self.sol.sol(tau)
+        return np.array([x, y, phi, vx, vy, w])
+
+    def accel_bound(self, s, h):
+        """Upper bound of |a_y| of the COM over the next ``h`` s from COM state ``s`` (m/s^2).
+
+        Without drag and Magnus force it is g exactly. With them |v| can grow by at most g h
+        (drag only slows, the Magnus force is perpendicular to v) and |omega| only decays.
+        """
+        g = self.truth.g
+        if not self.numeric:
+            return g
+        vmax = math.hypot(s[3], s[4]) + g * h
+        return g + self.truth.air_drag * vmax * vmax + abs(self.truth.magnus * s[5]) * vmax
+
+
+def _next_contact(die, flight, t_start, t_stop):
+    """First time in [t_start, t_stop] at which an approaching corner reaches the table.
+
+    Conservative advancement: corner k's height obeys h(t + s) >= h + h' s - M2 s^2 / 2 with
+    M2 = max |a_y| + rho_k (omega^2 + |omega'|), so stepping to the first root of that lower
+    bound can never pass a contact, and near one it is a Newton step from the safe side
+    (quadratic convergence).
+
+    Returns
+    -------
+    (t, k, reason)
+        ``k`` the touching corner, or ``None`` with ``reason`` "duration" (no contact before
+        ``t_stop``) or "stalled" (the search did not converge).
+    """
+    tol = CONTACT_TOL * die.radius
+    t = t_start
+    for _ in range(MAX_SEARCH_STEPS):
+        s = flight.state(t)
+        phi, w = s[2], s[5]
+        _, _, dw = flight.rotation(t - flight.t0)
+        ang = phi + die.gamma
+        height = s[1] + die.rho * np.sin(ang)
+        speed = s[4] + die.rho * w * np.cos(ang)  # d height / dt
+        touching = (height <= tol) & (speed < 0.0)
+        if touching.any():
+            cand = np.flatnonzero(touching)
+            return t, int(cand[np.argmin(height[cand])]), "contact"
+        if t >= t_stop:
+            return None, None, "duration"
+        h_cap = t_stop - t if not flight.numeric else min(t_stop - t, NUMERIC_MAX_STEP)
+        m2 = flight.accel_bound(s, h_cap) + die.rho * (w * w + abs(dw))
+        gap = np.maximum(height, 0.0)
+        steps = (speed + np.sqrt(speed * speed + 2.0 * m2 * gap)) / m2
+        h = min(float(steps.min()), h_cap)
+        if h <= 1e-15 * max(1.0, t):
+            return t, None, "stalled"
+        t = min(t + h, t_stop)
+    return t, None, "stalled"
+
+
+# ----------------------------------------------------------------------------------- impacts
+
+
+def _corner_impulse(die, r, u, beta_n, beta_t, mu):
+    """Impulse per unit mass (P_t, P_n) at corner offset ``r`` (from the COM) on the table.
+
+    Newton restitution u_n' = -beta_n u_n, tangential target u_t' = -beta_t u_t, through the
+    contact mass matrix K = 1 + r_perp r_perp^T / I; the Coulomb cap puts the impulse on the
+    cone edge on the target's side (frictionless impulse on a jam); the energy rule moves it
+    along the segment towards the frictionless impulse only as far as needed.
+
+    Returns
+    -------
+    P : ndarray, shape (2,)
+        (P_t, P_n), N s / kg.
+    info : dict
+        ``capped``, ``clipped`` (energy rule used), ``dT`` (J/kg).
+    """
+    inv_i = 1.0 / die.inertia
+    # r_perp = z x r = (-r_y, r_x); the table's tangent is +x, its normal +y
+    K = np.array([[1.0 + r[1] * r[1] * inv_i, -r[0] * r[1] * inv_i],
+                  [-r[0] * r[1] * inv_i, 1.0 + r[0] * r[0] * inv_i]])
+    target = np.array([-beta_t * u[0], -beta_n * u[1]])
+    P = np.linalg.solve(K, target - u)
+    frictionless = np.array([0.0, -(1.0 + beta_n) * u[1] / K[1, 1]])
+    capped = False
+    if math.isfinite(mu) and abs(P[0]) > mu * P[1]:
+        capped = True
+        sgn = math.copysign(1.0, P[0])
+        denom = K[1, 1] + sgn * mu * K[0, 1]
+        if denom > 0.0:
+            pn = -(1.0 + beta_n) * u[1] / denom
+            P = np.array([sgn * mu * pn, pn])
+        else:
+            # a jam, as the doc specifies. Unreachable here: the target meets the normal
+            # condition L(P) > 0 outside the cone on side sgn, and L is linear, so L of the
+            # edge direction, which is this denominator, is then positive as well.
+            P = frictionless.copy()
+
+    def d_energy(p):
+        return float(p @ u + 0.5 * p @ K @ p)
+
+    dT = d_energy(P)
+    clipped = False
+    if dT > 0.0 or P[1] < 0.0:
+        clipped = True
+        D = frictionless - P
+        lam = 0.0
+        if dT > 0.0:
+            # dT(lam) = dT + b lam + a lam^2 is convex with dT(1) <= 0: take its lower root
+            a = 0.5 * float(D @ K @ D)
+            b = float(D @ u + D @ K @ P)
+            disc = max(b * b - 4.0 * a * dT, 0.0)
+            q = 0.5 * (-b + math.sqrt(disc))  # b < 0 here, so q > 0 and the lower root is dT / q
+            lam = dT / q if q > 0.0 else 1.0
+        if P[1] < 0.0:
+            lam = max(lam, -P[1] / D[1])
+        lam = min(max(lam, 0.0), 1.0)
+        P = P + lam * D
+        dT = d_energy(P)
+    return P, {"capped": capped, "clipped": clipped, "dT": dT}
+
+
+def impact(truth, com_state, corner):
+    """The table impact of ``corner`` for a COM state, by the truth's contact law.
+
+    Parameters
+    ----------
+    truth : Truth
+    com_state : array_like
+        (x, y, phi, vx, vy, omega) of the centre of mass just before the impact.
+    corner : int
+        Index of the touching corner.
+
+    Returns
+    -------
+    new_state : ndarray
+        The COM state just after the impact (positions unchanged).
+    info : dict
+        ``law`` ("paper", "fallback" or "rigid"), ``u_n`` and ``u_n_after`` (the corner's normal
+        velocity, m/s), ``beta_n`` (effective normal restitution), ``capped``, ``clipped``.
+    """
+    die = _Die(truth)
+    s = np.array(com_state, dtype=float)
+    r = die.corners(s)[corner]
+    vx, vy, w = s[3], s[4], s[5]
+    u = np.array([vx - w * r[1], vy + w * r[0]])  # corner velocity v + omega z x r
+    beta_n = truth.beta_normal / (1.0 + truth.speed_restitution * abs(u[1]))
+    beta_t = truth.beta_tangential
+    info = {"u_n": float(u[1]), "beta_n": beta_n, "capped": False, "clipped": False}
+    if truth.contact == "paper" and vy < 0.0:
+        # eqs 9, 12, 13 with lever R (circumradius) below the COM and alpha = I_com / (M R^2)
+        a, R = die.alpha, die.radius
+        vy2 = -beta_n * vy
+        vx2 = -((a * beta_t - 1.0) * vx + a * (beta_t + 1.0) * R * w) / (a + 1.0)
+        w2 = -((beta_t + 1.0) * vx - R * w * (a - beta_t)) / (R * (a + 1.0))
+        un2 = vy2 + w2 * r[0]
+        if un2 >= 0.0:  # the paper's law is defined here: centre approaching, corner released
+            new = s.copy()
+            new[3:] = vx2, vy2, w2
+            info.update(law="paper", u_n_after=float(un2), dT=energy(truth, new) - energy(truth, s))
+            return new, info
+    P, extra = _corner_impulse(die, r, u, beta_n, beta_t, truth.friction)
+    info.update(extra)
+    new = s.copy()
+    new[3] += P[0]
+    new[4] += P[1]
+    new[5] += (r[0] * P[1] - r[1] * P[0]) / die.inertia
+    info["law"] = "rigid" if truth.contact == "rigid" else "fallback"
+    info["u_n_after"] = float(new[4] + new[5] * r[0])
+    return new, info
+
+
+# ----------------------------------------------------------------------------------- paths
+
+
+class Path:
+    """A simulated drop: flights between impacts, the impacts, and why it ended.
+
+    Attributes
+    ----------
+    flights : list of (t_begin, t_end, _Flight)
+    impacts : list of dict
+        Per impact: ``t`` (s), ``corner``, ``before`` and ``after`` (COM states), ``law``,
+        ``u_n``, ``u_n_after``, ``beta_n``, ``capped``, ``clipped``, ``dT``.
+    t_end : float
+        Time at which the path ends (s).
+    end : str
+        "duration", "slow_impact", "two_corners", "no_rebound", "second_corner" or "stalled".
+    """
+
+    def __init__(self, truth):
+        self.truth = truth
+        self.die = _Die(truth)
+        self.flights = []
+        self.impacts = []
+        self.t_end = 0.0
+        self.end = ""
+
+    def com_state(self, t):
+        """COM state at time ``t`` (s) within [0, t_end]; at an impact, the state after it."""
+        for t0, t1, fl in reversed(self.flights):
+            if t >= t0:
+                return fl.state(min(t, t1))
+        return self.flights[0][2].state(0.0)
+
+    def centre_state(self, t):
+        """(x, y, phi, vx, vy, omega) of the geometric centre at time ``t`` (s)."""
+        return self.die.to_centre(self.com_state(t))
+
+
+def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
+    """Simulate one drop from a geometric-centre state until ``t_end`` or sustained contact.
+
+    Parameters
+    ----------
+    truth : Truth
+    state0 : array_like
+        (x, y, phi, vx, vy, omega) of the geometric centre at t = 0 (m, rad, m/s, rad/s).
+    t_end : float
+        Last time simulated (s).
+    min_bounce_speed : float
+        An impact approaching slower than this (m/s) is taken as the start of sustained
+        contact; the path ends there, before it.
+
+    Returns
+    -------
+    Path
+    """
+    path = Path(truth)
+    die = path.die
+    t, s = 0.0, die.to_com(state0)
+    tol2 = SECOND_CORNER_TOL * die.radius
+    while True:
+        flight = _Flight(truth, t, s, t_end)
+        tc, k, reason = _next_contact(die, flight, t, t_end)
+        if k is None:
+            path.flights.append((t, tc if tc is not None else t_end, flight))
+            path.t_end, path.end = (t_end if tc is None else tc), reason
+            return path
+        path.flights.append((t, tc, flight))
+        before = flight.state(tc)
+        ang = before[2] + die.gamma
+        height = before[1] + die.rho * np.sin(ang)
+        speed = before[4] + die.rho * before[5] * np.cos(ang)
+        path.t_end = tc
+        if -speed[k] < min_bounce_speed:
+            path.end = "slow_impact"
+            return path
+        others = [j for j in range(die.n) if j != k and height[j] <= tol2 and speed[j] < 0.0]
+        if others:  # a flat landing: two corners at once is not a single-corner impact
+            path.end = "two_corners"
+            return path
+        after, info = impact(truth, before, k)
+        info.update(t=tc, corner=k, before=before, after=after)
+        path.impacts.append(info)
+        if info["u_n_after"] < REBOUND_MIN:
+            path.end = "no_rebound"
+            return path
+        speed_after = after[4] + die.rho * after[5] * np.cos(ang)
+        if any(j != k and height[j] <= tol2 and speed_after[j] < 0.0 for j in range(die.n)):
+            path.end = "second_corner"
+            return path
+        t, s = tc, after
+
+
+def simulate_track(truth, state0, t_end, rate, *, min_bounce_speed=0.05):
+    """True poses of the geometric centre sampled at the frames, without any measurement effect.
+
+    Frames are at j / rate for j = 0, 1, ... while below ``t_end``, and stop where the path
+    ends (sustained contact; see the module docstring).
+
+    Parameters
+    ----------
+    truth : Truth
+    state0 : array_like
+        (x, y, phi, vx, vy, omega) of the geometric centre at t = 0.
+    t_end : float
+        Duration (s).
+    rate : float
+        Frame rate (Hz).
+    min_bounce_speed : float
+        See :func:`simulate_path` (m/s).
+
+    Returns
+    -------
+    dict
+        ``t``, ``x``, ``y``, ``phi`` (frames), plus ``vx``, ``vy``, ``omega`` (true velocities
+        of the geometric centre), ``impacts`` (impact times, s), ``end`` and ``t_stop`` (why
+        and when the path ended), ``path`` (the :class:`Path`).
+    """
+    path = simulate_path(truth, state0, t_end, min_bounce_speed=min_bounce_speed)
+    frames = int(math.ceil(t_end * rate - 1e-9))
+    t = np.arange(frames) / rate
+    t = t[t <= path.t_end]
+    poses = np.array([path.centre_state(ti) for ti in t]).reshape(-1, 6)
+    return {"t": t, "x": poses[:, 0], "y": poses[:, 1], "phi": poses[:, 2], "vx": poses[:, 3],
+            "vy": poses[:, 4], "omega": poses[:, 5], "impacts": np.array([i["t"] for i in path.impacts]),
+            "end": path.end, "t_stop": path.t_end, "path": path}
+
+
+def simulate_drops(truth, count, seed, *, rate=500.0, duration=0.5, noise=(2e-4, 4e-3), drop_prob=0.0,
+                   glitch_prob=0.0, height=(0.12, 0.17), vx=(-0.8, -0.4), vy=(-2.1, -1.7), spin=(-8.0, 8.0),
+                   min_bounce_speed=0.05):
+    """Tracked drops as a tracker would report them.
+
+    Release states of the geometric centre are drawn first, all at once, from
+    ``numpy.random.default_rng(seed)``: x0 uniform in +-0.05 m, y0 in ``height`` (m), phi0 in
+    [-pi, pi), vx0 in ``vx``, vy0 in ``vy`` (m/s), omega0 in ``spin`` (rad/s), in that order
+    (columns). Then, per track, with the same generator: the noise, the glitches and the
+    dropped frames (always drawn, so the noise does not depend on the probabilities).
+
+    Parameters
+    ----------
+    truth : Truth
+        Physics and measurement effects.
+    count : int
+        Number of drops.
+    seed : int
+        Seed of the random generator.
+    rate : float
+        True frame rate (Hz); the file's times carry ``truth.time_scale``.
+    duration : float
+        Longest track (s of true time).
+    noise : (float, float)
+        One sigma of the Gaussian noise on x and y (m, in the file's units) and on phi (rad).
+    drop_prob : float
+        Probability that a frame is missing from the file.
+    glitch_prob : float
+        Probability that a frame is a glitch: its pose jumps by 5-20 mm in a random direction
+        and by 0.3-1.0 rad with a random sign, for that frame only.
+    height, vx, vy, spin : (float, float)
+        Ranges of the release state.
+    min_bounce_speed : float
+        Impacts slower than this end a track (m/s).
+
+    Returns
+    -------
+    list of dict
+        Per drop: ``traj`` (1-based), ``t``, ``x``, ``y``, ``phi`` (file convention, missing
+        frames removed), ``state0`` (the true release state of the geometric centre),
+        ``glitch_t`` (file times of the glitched frames kept), ``end`` and ``impacts`` (true
+        times).
+    """
+    rng = np.random.default_rng(seed)
+    states = np.column_stack([
+        rng.uniform(-0.05, 0.05, count), rng.uniform(*height, count), rng.uniform(-np.pi, np.pi, count),
+        rng.uniform(*vx, count), rng.uniform(*vy, count), rng.uniform(*spin, count),
+    ])
+    tracks = []
+    for i, state0 in enumerate(states):
+        true = simulate_track(truth, state0, duration, rate, min_bounce_speed=min_bounce_speed)
+        m = true["t"].size
+        t = true["t"] * truth.time_scale
+        x = true["x"] * truth.length_scale
+        y = true["y"] * truth.length_scale
+        phi = true["phi"] + truth.angle_offset
+        eps = rng.normal(0.0, 1.0, (m, 3))
+        x = x + noise[0] * eps[:, 0]
+        y = y + noise[0] * eps[:, 1]
+        phi = phi + noise[1] * eps[:, 2]
+        glitch = rng.random(m) < glitch_prob
+        jump = rng.uniform(0.005, 0.020, m)
+        direction = rng.uniform(-np.pi, np.pi, m)
+        turn = rng.uniform(0.3, 1.0, m) * rng.choice([-1.0, 1.0], m)
+        x = np.where(glitch, x + jump * np.cos(direction), x)
+        y = np.where(glitch, y + jump * np.sin(direction), y)
+        phi = np.where(glitch, phi + turn, phi)
+        keep = ~(rng.random(m) < drop_prob)
+        tracks.append({"traj": i + 1, "t": t[keep], "x": x[keep], "y": y[keep], "phi": phi[keep],
+                       "state0": tuple(float(v) for v in state0), "glitch_t": t[glitch & keep],
+                       "end": true["end"], "impacts": true["impacts"]})
+    return tracks
+
+
+def write_csv(path, tracks):
+    """Write tracks as CSV with header ``traj,t,x,y,phi``, one row per frame kept.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    tracks : list of dict
+        As returned by :func:`simulate_drops`.
+    """
+    with open(path, "w", newline="") as fh:
+        out = csv.writer(fh)
+        out.writerow(["traj", "t", "x", "y", "phi"])
+        for tr in tracks:
+            for row in zip(tr["t"], tr["x"], tr["y"], tr["phi"]):
+                out.writerow([tr["traj"]] + [repr(float(v)) for v in row])

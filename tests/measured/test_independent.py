@@ -1,0 +1,399 @@
+"""Tests of the independent drop generator (tests/measured/independent.py).
+
+The generator must not use the project's simulation code; only the agreement tests here call
+the kernel, to check that both implement the same documented physics (docs/physics.md).
+"""
+
+import ast
+import csv
+import math
+from pathlib import Path as FsPath
+
+import numpy as np
+import pytest
+
+from tests.measured import independent as ind
+from tests.measured.independent import Truth, energy, impact, simulate_drops, simulate_path, simulate_track, write_csv
+
+R = 0.06 / math.sqrt(2)  # m, the default square
+ALPHA = 1.0 / 3.0  # I / (M R^2) of a square
+G = 9.81
+
+
+def release_states(count, seed):
+    """Release states like simulate_drops draws (m, rad, m/s, rad/s)."""
+    rng = np.random.default_rng(seed)
+    return np.column_stack([
+        rng.uniform(-0.05, 0.05, count), rng.uniform(0.12, 0.17, count), rng.uniform(-np.pi, np.pi, count),
+        rng.uniform(-0.8, -0.4, count), rng.uniform(-2.1, -1.7, count), rng.uniform(-8.0, 8.0, count),
+    ])
+
+
+def test_generator_imports_nothing_from_the_project():
+    tree = ast.parse(FsPath(ind.__file__).read_text())
+    names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)]
+    assert all(name.split(".")[0] in {"csv", "math", "dataclasses", "numpy", "scipy"} for name in names), names
+
+
+# ----------------------------------------------------------------------------------- energy
+
+
+@pytest.mark.parametrize("truth", [
+    Truth(contact="rigid", beta_normal=0.4, beta_tangential=-0.2),
+    Truth(contact="paper", beta_normal=0.4, beta_tangential=-0.2, com_offset=(0.005, 0.004)),
+])
+def test_free_flight_conserves_energy(truth):
+    path = simulate_path(truth, (0.0, 0.15, 0.3, -0.5, -1.9, 6.0), 0.5)
+    assert len(path.impacts) >= 3
+    for t0, t1, flight in path.flights:
+        e = [energy(truth, flight.state(t)) for t in np.linspace(t0, t1, 7)]
+        assert np.ptp(e) < 1e-12 * abs(e[0])
+
+
+def test_air_drag_removes_energy_in_flight():
+    truth = Truth(air_drag=0.8)
+    path = simulate_path(truth, (0.0, 0.15, 0.3, -0.5, -1.9, 6.0), 0.5)
+    assert len(path.impacts) >= 3
+    for t0, t1, flight in path.flights:
+        e = np.array([energy(truth, flight.state(t)) for t in np.linspace(t0, t1, 9)])
+        assert np.all(np.diff(e) < 0.0)
+    # a vertical fall against the closed form y0 - (v_t^2/g) ln cosh(g t / v_t)
+    vt = math.sqrt(G / truth.air_drag)
+    fall = simulate_path(truth, (0.0, 0.5, 0.3, 0.0, 0.0, 0.0), 0.2)
+    assert not fall.impacts
+    assert fall.com_state(0.15)[1] == pytest.approx(0.5 - vt**2 / G * math.log(math.cosh(G * 0.15 / vt)), abs=1e-12)
+
+
+@pytest.mark.parametrize("contact", ["rigid", "paper"])
+def test_no_impact_gains_energy(contact):
+    rng = np.random.default_rng(7)
+    impacts = clipped = 0
+    for state in release_states(40, 3):
+        truth = Truth(contact=contact, beta_normal=rng.uniform(0.0, 1.0), beta_tangential=rng.uniform(-1.0, 1.0),
+                      friction=[math.inf, rng.uniform(0.0, 1.0)][rng.integers(2)],
+                      com_offset=tuple(rng.uniform(-0.01, 0.01, 2)), speed_restitution=rng.uniform(0.0, 1.0))
+        for hit in simulate_path(truth, state, 0.5).impacts:
+            impacts += 1
+            clipped += hit["clipped"]
+            gain = energy(truth, hit["after"]) - energy(truth, hit["before"])
+            assert gain <= 1e-12 * energy(truth, hit["before"])
+            assert hit["dT"] <= 1e-12
+    assert impacts > 100
+    if contact == "rigid":
+        assert clipped > 0  # the energy rule was exercised
+
+
+# ----------------------------------------------------------------------------------- single impacts
+
+
+def corner_down(tilt, vx, vy, omega):
+    """COM state of the default square with corner 0 at the table, ``tilt`` rad from straight
+    below the centre (counterclockwise), and its offset r from the centre."""
+    phi = -math.pi / 2 + tilt
+    r = np.array([R * math.cos(phi), R * math.sin(phi)])
+    return np.array([0.0, -r[1], phi, vx, vy, omega]), r
+
+
+@pytest.mark.parametrize("contact", ["rigid", "paper"])
+def test_square_falling_corner_first_bounces_straight_up(contact):
+    # released with corner 0 straight down, no spin: Newton restitution at the corner is also
+    # eq 9, and neither law can create spin or drift (no lever, no slip)
+    h0, e = 0.1, 0.4
+    truth = Truth(contact=contact, beta_normal=e, beta_tangential=-0.35)
+    path = simulate_path(truth, (0.02, R + h0, -math.pi / 2, 0.0, 0.0, 0.0), 0.5)
+    first = path.impacts[0]
+    tc = math.sqrt(2.0 * h0 / G)
+    assert first["t"] == pytest.approx(tc, abs=1e-12)
+    assert first["corner"] == 0
+    assert first["after"][3:] == pytest.approx([0.0, e * G * tc, 0.0], abs=1e-12)
+    second = path.impacts[1]
+    assert second["t"] == pytest.approx(tc + 2.0 * e * tc, abs=1e-12)
+    assert path.end == "slow_impact" and -path.impacts[-1]["after"][4] < 0.05 / e + 1e-12
+
+
+def test_paper_law_matches_eqs_12_and_13_for_a_corner_below_the_centre():
+    # beta_t = 0: vx' = (vx - alpha R w)/(1 + alpha), R w' = -vx', by eqs 12-13 with alpha = 1/3
+    truth = Truth(contact="paper", beta_normal=0.5, beta_tangential=0.0)
+    s, _ = corner_down(0.0, 0.4, -1.0, 0.3 / R)
+    after, info = impact(truth, s, 0)
+    assert info["law"] == "paper"
+    assert after[3] == pytest.approx(0.225, abs=1e-14)
+    assert after[4] == pytest.approx(0.5, abs=1e-14)
+    assert after[5] * R == pytest.approx(-0.225, abs=1e-14)
+    # beta_t = -0.35: the same equations, evaluated by hand
+    truth = Truth(contact="paper", beta_normal=0.2, beta_tangential=-0.35)
+    after, _ = impact(truth, s, 0)
+    a, b, vx, rw = ALPHA, -0.35, 0.4, 0.3
+    assert after[3] == pytest.approx(-((a * b - 1) * vx + a * (b + 1) * rw) / (a + 1), abs=1e-14)
+    assert after[5] * R == pytest.approx(-((b + 1) * vx - rw * (a - b)) / (a + 1), abs=1e-14)
+
+
+def test_paper_law_ignores_the_lever_of_a_tilted_corner():
+    # the paper's lever is R straight below the centre: a tilted corner gets no spin
+    truth = Truth(contact="paper", beta_normal=0.4, beta_tangential=-0.35)
+    s, _ = corner_down(0.3, 0.0, -2.0, 0.0)
+    after, info = impact(truth, s, 0)
+    assert info["law"] == "paper"
+    assert after[3:] == pytest.approx([0.0, 0.8, 0.0], abs=1e-14)
+
+
+@pytest.mark.parametrize("contact", ["rigid", "paper"])
+def test_paper_fallback_and_rigid_law_use_the_corner_impulse(contact):
+    # centre moving up while the spin drives the corner in: the paper law's undefined case 1
+    e = 0.4
+    truth = Truth(contact=contact, beta_normal=e, beta_tangential=0.0)
+    s, r = corner_down(0.4, 0.1, 0.2, -30.0)
+    after, info = impact(truth, s, 0)
+    assert info["law"] == ("rigid" if contact == "rigid" else "fallback")
+    i = ALPHA * R**2
+    u = np.array([0.1 - s[5] * r[1], 0.2 + s[5] * r[0]])
+    assert u[1] < 0.0
+    # K = 1 + r_perp r_perp^T / I, inverse by hand: K^-1 = (1 + r r^T / I) / (1 + R^2 / I)
+    kinv = (np.eye(2) + np.outer(r, r) / i) / (1.0 + R**2 / i)
+    P = kinv @ np.array([-u[0], -(1 + e) * u[1]])
+    assert not info["clipped"]
+    assert after[3] == pytest.approx(0.1 + P[0], abs=1e-14)
+    assert after[4] == pytest.approx(0.2 + P[1], abs=1e-14)
+    assert after[5] == pytest.approx(-30.0 + (r[0] * P[1] - r[1] * P[0]) / i, abs=1e-11)
+    # the corner leaves with the targets: no slip, Newton restitution
+    assert after[3] - after[5] * r[1] == pytest.approx(0.0, abs=1e-14)
+    assert info["u_n_after"] == pytest.approx(-e * u[1], abs=1e-14)
+
+
+def test_rigid_law_for_a_tilted_corner_falling_straight_down():
+    # u = (0, -v), target (0, e v): P = (1+e) v (r_x r_y, I + r_y^2) / (I + R^2)
+    e, v, tilt = 0.4, 2.0, 0.3
+    s, r = corner_down(tilt, 0.0, -v, 0.0)
+    i = ALPHA * R**2
+    after, _ = impact(Truth(beta_normal=e, beta_tangential=0.0), s, 0)
+    pt = (1 + e) * v * r[0] * r[1] / (i + R**2)
+    pn = (1 + e) * v * (i + r[1] ** 2) / (i + R**2)
+    assert after[3:] == pytest.approx([pt, -v + pn, (r[0] * pn - r[1] * pt) / i], abs=1e-13)
+    # frictionless: P = (0, (1+e) v / (1 + r_x^2 / I))
+    after, _ = impact(Truth(beta_normal=e, beta_tangential=0.0, friction=0.0), s, 0)
+    pn = (1 + e) * v / (1 + r[0] ** 2 / i)
+    assert after[3:] == pytest.approx([0.0, -v + pn, r[0] * pn / i], abs=1e-13)
+
+
+def test_coulomb_cap_puts_the_impulse_on_the_cone_edge_on_the_targets_side():
+    e, mu = 0.4, 0.1
+    s, r = corner_down(0.3, 1.0, -2.0, 0.0)  # sliding in +x: the target impulse points to -x
+    i = ALPHA * R**2
+    after, info = impact(Truth(beta_normal=e, beta_tangential=0.0, friction=mu), s, 0)
+    assert info["capped"]
+    knn, ktn = 1 + r[0] ** 2 / i, -r[0] * r[1] / i
+    pn = (1 + e) * 2.0 / (knn - mu * ktn)
+    assert after[3] == pytest.approx(1.0 - mu * pn, abs=1e-13)
+    assert info["u_n_after"] == pytest.approx(e * 2.0, abs=1e-13)
+
+
+def test_speed_restitution_divides_beta_normal():
+    k, e, v = 0.5, 0.6, 2.0
+    s, _ = corner_down(0.0, 0.0, -v, 0.0)
+    for contact in ("rigid", "paper"):
+        after, info = impact(Truth(contact=contact, beta_normal=e, speed_restitution=k), s, 0)
+        assert after[4] == pytest.approx(e / (1 + k * v) * v, abs=1e-14)
+
+
+def test_loaded_die_is_reported_at_its_geometric_centre():
+    truth = Truth(com_offset=(0.01, 0.0))
+    state0 = (0.0, 0.2, 0.0, 0.0, 0.0, 10.0)
+    track = simulate_track(truth, state0, 0.05, 1000.0)
+    # in flight the COM follows a parabola and the centre circles around it at 1 cm; the
+    # centre starts at rest, so the COM starts at x = 1 cm moving up at omega * 1 cm
+    com_x = track["x"] + 0.01 * np.cos(track["phi"])
+    com_y = track["y"] + 0.01 * np.sin(track["phi"])
+    t = track["t"]
+    assert com_x == pytest.approx(0.01 * np.ones_like(t), abs=1e-14)
+    assert com_y == pytest.approx(0.2 + 0.1 * t - 0.5 * G * t**2, abs=1e-14)
+    assert track["phi"] == pytest.approx(10.0 * t, abs=1e-14)
+    assert track["vx"][0] == 0.0 and track["vy"][0] == 0.0
+
+
+# ----------------------------------------------------------------------------------- contact search
+
+
+def test_no_corner_goes_below_the_table_and_impacts_are_at_contact():
+    truth = Truth(contact="rigid", beta_normal=0.5, beta_tangential=-0.3, air_drag=0.3)
+    for state in release_states(5, 11):
+        path = simulate_path(truth, state, 0.5)
+        for hit in path.impacts:
+            s = hit["before"]
+            k = hit["corner"]
+            corner_y = s[1] + path.die.rho[k] * math.sin(s[2] + path.die.gamma[k])
+            assert abs(corner_y) < 1e-12 * R
+        for t0, t1, flight in path.flights:
+            for t in np.linspace(t0, t1, 400):
+                s = flight.state(t)
+                assert np.min(s[1] + path.die.rho * np.sin(s[2] + path.die.gamma)) > -1e-12 * R
+
+
+def test_tracks_end_before_sustained_contact():
+    truth = Truth(beta_normal=0.4)
+    for state in release_states(10, 5):
+        track = simulate_track(truth, state, 2.0, 500.0)
+        assert track["end"] in {"slow_impact", "two_corners", "second_corner", "no_rebound"}
+        assert track["t"][-1] <= track["t_stop"] < track["t"][-1] + 1 / 500.0 + 1e-12
+        last = track["path"].impacts[-1]
+        assert -last["u_n"] >= 0.05
+
+
+def test_a_flat_landing_or_a_dead_impact_ends_the_track():
+    # a square released flat lands on two corners at once: no single-corner impact
+    path = simulate_path(Truth(), (0.0, 0.1, math.pi / 4, 0.0, 0.0, 0.0), 0.5)
+    assert path.end == "two_corners" and not path.impacts
+    assert path.t_end == pytest.approx(math.sqrt(2 * (0.1 - R / math.sqrt(2)) / G), abs=1e-12)
+    # beta_normal = 0: the corner stays on the table, which is sustained contact
+    path = simulate_path(Truth(beta_normal=0.0), (0.0, 0.1, 0.3, 0.0, 0.0, 1.0), 0.5)
+    assert path.end == "no_rebound" and len(path.impacts) == 1
+
+
+def test_out_of_library_effects_act_in_flight():
+    state0 = (0.0, 0.5, 0.0, 1.0, 0.0, 10.0)
+    damped = simulate_path(Truth(spin_damping=2.0), state0, 0.2)
+    s = damped.com_state(0.2)
+    assert s[5] == pytest.approx(10.0 * math.exp(-0.4), rel=1e-14)
+    assert s[2] == pytest.approx(10.0 * (1 - math.exp(-0.4)) / 2.0, rel=1e-14)
+    assert s[1] == pytest.approx(0.5 - 0.5 * G * 0.04, abs=1e-14)  # translation untouched
+    lifted = simulate_path(Truth(magnus=0.05), state0, 0.2).com_state(0.2)
+    plain = simulate_path(Truth(), state0, 0.2).com_state(0.2)
+    assert lifted[1] > plain[1] + 1e-3  # omega > 0 and vx > 0: the Magnus force lifts
+    # the Magnus force is perpendicular to v: it does no work
+    assert energy(Truth(), lifted) == pytest.approx(energy(Truth(), plain), rel=1e-10)
+
+
+# ----------------------------------------------------------------------------------- the kernel
+
+
+def kernel_poses(truth, states, times):
+    """The project's kernel, sampled at ``times`` for each state (geometric centre poses)."""
+    from dice_sweep.config import parse_config
+    from dice_sweep.physics import pack_params
+    from dice_sweep.physics.kernel import sample_batch
+    from dice_sweep.physics.params import IP_CONTINUE
+
+    cfg = parse_config(
+        f"[die]\nsides = {truth.sides}\ncircumradius = {truth.circumradius!r}\n"
+        f'[contact]\nmodel = "{truth.contact}"\nbeta_normal = {truth.beta_normal!r}\n'
+        f"beta_tangential = {truth.beta_tangential!r}\nfriction = {truth.friction!r}\n"
+        f"[world]\ng = {truth.g!r}\n"
+        f"[effects]\nair_drag = {truth.air_drag!r}\ncom_offset = [{truth.com_offset[0]!r}, {truth.com_offset[1]!r}]\n"
+        f"speed_restitution = {truth.speed_restitution!r}\n"
+        f"[integrator]\nt_max = {float(max(t[-1] for t in times if len(t))) + 0.01!r}\n"
+    )
+    fpar, ipar = pack_params(cfg)
+    ipar[IP_CONTINUE] = 1
+    all_t = np.concatenate(times)
+    starts = np.concatenate([[0], np.cumsum([len(t) for t in times])])
+    out = np.zeros((all_t.size, 6))
+    sample_batch(fpar, ipar, np.asarray(states, float), all_t, starts, out, np.zeros(len(states), np.int8))
+    return [out[starts[i]:starts[i + 1]] for i in range(len(states))]
+
+
+def _t(contact, **kw):
+    """A Truth at the test's base coefficients (beta_normal 0.4, beta_tangential -0.2)."""
+    return Truth(contact=contact, **{"beta_normal": 0.4, "beta_tangential": -0.2, **kw})
+
+
+KERNEL_CASES = {
+    # name: (truth, the impact law or branch the case must exercise)
+    "paper": (_t("paper"), "fallback"),
+    "paper+friction": (_t("paper", friction=0.3), "capped"),
+    "rigid": (_t("rigid"), "rigid"),
+    "rigid+friction": (_t("rigid", friction=0.3), "capped"),
+    "rigid, energy rule": (_t("rigid", beta_normal=0.5, beta_tangential=-0.9, friction=0.5), "clipped"),
+    "drag": (_t("rigid", air_drag=0.5), "rigid"),
+    "com_offset rigid": (_t("rigid", com_offset=(0.006, -0.004)), "rigid"),
+    "com_offset paper": (_t("paper", com_offset=(0.006, -0.004)), "fallback"),
+    "speed_restitution rigid": (_t("rigid", beta_normal=0.6, speed_restitution=0.5), "rigid"),
+    "speed_restitution paper": (_t("paper", beta_normal=0.6, speed_restitution=0.5), "fallback"),
+    "hexagon, everything": (_t("rigid", sides=6, circumradius=0.03, beta_tangential=-0.3, friction=0.4, air_drag=0.2,
+                               com_offset=(0.003, 0.002), speed_restitution=0.3), "capped"),
+}
+KERNEL_TOL = (1e-8, 1e-7)  # m, rad; measured: at most 2e-12 m and 4e-11 rad (300 drops per case)
+
+
+@pytest.mark.parametrize("name", list(KERNEL_CASES))
+def test_agrees_with_the_kernel_over_the_first_three_impacts(name):
+    truth, exercised = KERNEL_CASES[name]
+    states = release_states(20, 1)
+    tracks = [simulate_track(truth, s, 0.5, 2000.0) for s in states]
+    times, used = [], 0
+    for tr in tracks:
+        hits = tr["path"].impacts[:3]
+        assert len(hits) == 3  # generic drops bounce at least three times
+        times.append(tr["t"][tr["t"] <= hits[-1]["t"]])
+        used += sum(bool(h[exercised]) if exercised in h else h["law"] == exercised for h in hits)
+    assert used > 0, f"no impact of this case exercised {exercised!r}"
+    for tr, t, ref in zip(tracks, times, kernel_poses(truth, states, times)):
+        n = t.size
+        assert np.abs(ref[:, :2] - np.column_stack([tr["x"][:n], tr["y"][:n]])).max() < KERNEL_TOL[0]
+        assert np.abs(ref[:, 2] - tr["phi"][:n]).max() < KERNEL_TOL[1]
+
+
+# ----------------------------------------------------------------------------------- measurement
+
+
+def test_measurement_effects_change_the_file_as_defined():
+    base = Truth(contact="paper", beta_normal=0.4, beta_tangential=-0.2)
+    seen = Truth(contact="paper", beta_normal=0.4, beta_tangential=-0.2, angle_offset=0.3, time_scale=1.02,
+                 length_scale=0.97)
+    clean = simulate_drops(base, 3, 4, noise=(0.0, 0.0))
+    warped = simulate_drops(seen, 3, 4, noise=(0.0, 0.0))
+    for a, b in zip(clean, warped):
+        assert a["state0"] == b["state0"]
+        assert b["t"] == pytest.approx(1.02 * a["t"], rel=1e-15)
+        assert b["x"] == pytest.approx(0.97 * a["x"], rel=1e-15)
+        assert b["y"] == pytest.approx(0.97 * a["y"], rel=1e-15)
+        assert b["phi"] == pytest.approx(a["phi"] + 0.3, abs=1e-15)
+    # the clean file is the true track, sampled at 500 Hz
+    true = simulate_track(base, clean[0]["state0"], 0.5, 500.0)
+    assert clean[0]["t"] == pytest.approx(np.arange(true["t"].size) / 500.0)
+    assert clean[0]["x"] == pytest.approx(true["x"], abs=0.0)
+
+
+def test_noise_has_the_requested_sigma():
+    truth = Truth()
+    clean = simulate_drops(truth, 10, 8, noise=(0.0, 0.0))
+    noisy = simulate_drops(truth, 10, 8, noise=(2e-4, 4e-3))
+    dx = np.concatenate([n["x"] - c["x"] for n, c in zip(noisy, clean)])
+    dy = np.concatenate([n["y"] - c["y"] for n, c in zip(noisy, clean)])
+    dp = np.concatenate([n["phi"] - c["phi"] for n, c in zip(noisy, clean)])
+    assert dx.size > 1000
+    for d, sigma in ((dx, 2e-4), (dy, 2e-4), (dp, 4e-3)):
+        assert abs(d.mean()) < 4 * sigma / math.sqrt(d.size)
+        assert d.std() == pytest.approx(sigma, rel=5 / math.sqrt(d.size))
+
+
+def test_dropped_frames_and_glitches():
+    truth = Truth()
+    clean = simulate_drops(truth, 10, 9, noise=(0.0, 0.0))
+    hit = simulate_drops(truth, 10, 9, noise=(0.0, 0.0), drop_prob=0.2, glitch_prob=0.05)
+    total = kept = glitches = 0
+    for c, h in zip(clean, hit):
+        total += c["t"].size
+        kept += h["t"].size
+        index = np.searchsorted(c["t"], h["t"])
+        assert np.array_equal(c["t"][index], h["t"])  # the remaining rows keep their own times
+        jump = np.hypot(h["x"] - c["x"][index], h["y"] - c["y"][index])
+        turn = np.abs(h["phi"] - c["phi"][index])
+        bad = np.isin(h["t"], h["glitch_t"])
+        glitches += bad.sum()
+        assert np.all((jump[bad] >= 0.005 - 1e-12) & (jump[bad] <= 0.020 + 1e-12))
+        assert np.all((turn[bad] >= 0.3 - 1e-12) & (turn[bad] <= 1.0 + 1e-12))
+        assert np.all(jump[~bad] == 0.0) and np.all(turn[~bad] == 0.0)  # one frame only
+    assert kept / total == pytest.approx(0.8, abs=4 * math.sqrt(0.16 / total))
+    assert glitches / kept == pytest.approx(0.05, abs=4 * math.sqrt(0.05 * 0.95 / kept))
+
+
+def test_write_csv(tmp_path):
+    tracks = simulate_drops(Truth(), 2, 1, drop_prob=0.1)
+    write_csv(tmp_path / "drops.csv", tracks)
+    with open(tmp_path / "drops.csv") as fh:
+        rows = list(csv.reader(fh))
+    assert rows[0] == ["traj", "t", "x", "y", "phi"]
+    assert len(rows) - 1 == sum(t["t"].size for t in tracks)
+    back = np.array(rows[1:], float)
+    first = back[back[:, 0] == 1]
+    assert first[:, 1:] == pytest.approx(np.column_stack([tracks[0][k] for k in ("t", "x", "y", "phi")]), abs=0.0)
