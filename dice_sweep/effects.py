@@ -154,15 +154,15 @@ EFFECTS = (
         "corner_impulse", "contact",
         "the impulse acts at the touching corner (the rigid law) instead of the paper's lever R below the centre",
         switch=("contact.model", "rigid"),
-        signature="impact_spin_vs_lever",
-        signature_note="correlation of the spin error after an impact with the touching corner's horizontal lever arm",
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss by more than the flights the states were fitted to",
     ),
     Effect(
         "coulomb_friction", "contact",
         "the tangential impulse is capped at friction times the normal impulse (sliding contacts)",
         params=(Param("friction", "1", "contact.friction", _fixed(0.0, 3.0), math.inf, (0.1, 0.5), 0.1),),
-        signature="impact_tangential_ratio",
-        signature_note="median |tangential| over normal velocity change of the touching corner at impacts",
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss (sliding contacts: the horizontal motion after it)",
     ),
     Effect(
         "air_drag", "flight", "quadratic air drag on the centre of mass, a = -c |v| v",
@@ -185,8 +185,8 @@ EFFECTS = (
         "speed_restitution", "contact", "restitution that falls with impact speed, beta_normal / (1 + k |u_n|)",
         params=(Param("speed_restitution", "s/m", "effects.speed_restitution", _fixed(0.0, 5.0), 0.0, (0.2, 1.0), 0.1),),
         config_keys=(ConfigKey("effects", "speed_restitution", 0.0, "s/m", low=0.0),),
-        signature="impact_dv_vs_speed",
-        signature_note="correlation of the rebound-speed error with the impact speed",
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss, more after fast impacts than after slow ones",
     ),
     Effect(
         "gravity", "flight", "the acceleration of free fall differs from the declared [world] g",
@@ -199,8 +199,8 @@ EFFECTS = (
         params=(Param("angle_offset", "rad", "tracking.angle_offset", _fixed(-0.5, 0.5), 0.0, (), 0.01),),
         config_keys=(ConfigKey("tracking", "angle_offset", 0.0, "rad", low=-math.pi, high=math.pi),),
         measurement=Measurement(state_to_true=_shifted(2, -1.0), pose_to_file=_shifted(2, +1.0)),
-        signature="rest_angle_offset",
-        signature_note="median angle residual of the flights, as an offset of the tracked angle",
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss: the corner that touches is not where the tracked angle puts it",
     ),
     Effect(
         "time_scale", "measurement",
@@ -218,16 +218,16 @@ EFFECTS = (
         params=(Param("length_scale", "1", "tracking.length_scale", _fixed(0.8, 1.25), 1.0, (), 0.01),),
         config_keys=(ConfigKey("tracking", "length_scale", 1.0, "1", low=0.0, low_open=True),),
         measurement=Measurement(state_to_true=_scaled([0, 1, 3, 4], lambda s: 1.0 / s), pose_to_file=_scaled([0, 1], lambda s: s)),
-        signature="contact_height",
-        signature_note="height of the lowest corner at contact and at rest off the table by a share of the die's size",
+        signature="flight_vertical_curvature",
+        signature_note="free-flight curvature off g by the same factor for every track, and impacts at a height off by a share of the die's size",
     ),
     Effect(
         "table_offset", "measurement", "the tracker's height zero is not the table: file y = true y + offset",
         params=(Param("table_offset", "m", "tracking.table_offset", lambda cfg: (-0.25 * cfg.die.circumradius, 0.25 * cfg.die.circumradius), 0.0, (), 1e-3),),
         config_keys=(ConfigKey("tracking", "table_offset", 0.0, "m"),),
         measurement=Measurement(state_to_true=_shifted(1, -1.0), pose_to_file=_shifted(1, +1.0)),
-        signature="contact_height",
-        signature_note="height of the lowest corner at contact off the table by the same length for every impact",
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss: impacts happen at a height off by the same length every time",
     ),
 )
 
@@ -336,9 +336,10 @@ def measurement_maps(cfg, values):
 
 def markdown_table():
     """The registry as a Markdown table (docs/effects.md, docs/physics.md)."""
-    lines = ["| effect | kind | what it changes | parameters (unit, fit bounds, null) | config key | signature |", "|---|---|---|---|---|---|"]
+    lines = ["| effect | kind | what it changes | parameters (unit, null value) | config key | residual signature |", "|---|---|---|---|---|---|"]
     for e in EFFECTS:
         params = "; ".join(f"{p.name} ({p.unit}, null {p.null if not callable(p.null) else 'the declared value'})" for p in e.params) or "-"
         key = f"`{e.switch[0]} = \"{e.switch[1]}\"`" if e.switch else ", ".join(f"`{p.key}`" for p in e.params)
-        lines.append(f"| {e.name} | {e.kind} | {e.summary} | {params} | {key} | {e.signature} |")
+        summary = e.summary.replace("|", "\\|")  # a pipe would end the table cell
+        lines.append(f"| {e.name} | {e.kind} | {summary} | {params} | {key} | {e.signature}: {e.signature_note} |")
     return "\n".join(lines)

@@ -84,3 +84,20 @@ def test_markdown_table_lists_every_effect():
     table = effects.markdown_table()
     for name in NAMES:
         assert f"| {name} |" in table
+
+
+def test_docs_tables_are_regenerated_from_the_registry():
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parent.parent / "scripts" / "effects_doc.py"
+    result = subprocess.run([sys.executable, str(script)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_every_signature_is_measured_by_the_diagnosis():
+    from dice_sweep.measured.diagnose import SIGNATURES
+
+    for entry in effects.EFFECTS:
+        assert entry.signature in SIGNATURES, entry.name

@@ -46,6 +46,7 @@ EXPLAINED_FACTOR = 1.5
 MIN_EXCESS_SHARE = 0.1
 MIN_TRACKS = 8  # fewer usable selection tracks cannot test anything
 MAX_CHAIN = 4
+POLISH_ITERATIONS = 150  # the baseline and each accepted model are fitted to convergence
 WOBBLE_MIN_TURN = math.pi  # rad a flight must turn for a wobble at the spin angle to be seen
 
 METRIC = (
@@ -329,11 +330,19 @@ def residual_signatures(prepared, segments, residual, radius):
     return out
 
 
-def _remaining(signatures):
-    """Signatures whose interval excludes 0: the residual structure left unexplained."""
-    return [s["signature"] for s in signatures if s["signature"] not in ("impact_prediction", "flight_wobble_at_spin")
-            and np.isfinite(s["value"])
-            and not (s["ci95"][0] <= 0.0 <= s["ci95"][1])]
+def _remaining(signatures, floor):
+    """Signatures left in the residual: a signed one whose interval excludes 0, an amplitude
+    (wobble) or the impact prediction's extra error whose interval lies above half the floor."""
+    left = []
+    for s in signatures:
+        if not np.isfinite(s["value"]):
+            continue
+        if s["signature"] in ("impact_prediction", "flight_wobble_at_spin"):
+            if s["ci95"][0] > 0.5 * floor:
+                left.append(s["signature"])
+        elif not (s["ci95"][0] <= 0.0 <= s["ci95"][1]):
+            left.append(s["signature"])
+    return left
 
 
 # --- the loop --------------------------------------------------------------------------------
@@ -408,12 +417,67 @@ def _confirm(cfg, fit, segments):
     return shooting.track_errors(segments, model.residuals(held.params, held.states)), held
 
 
+MAX_RESTARTS = 2  # times a round may be repeated because the current model found a lower optimum
+
+
+def _better_optimum(cfg, current, results, segments, restarts):
+    """(refitted current model, candidate name) when a candidate that kept its own parameters
+    at their null value reached a clearly lower cost; else None."""
+    if restarts >= MAX_RESTARTS:
+        return None
+    nulls = [r for r in results if not r["null_excluded"] and r["fit"].cost < current.cost * (1.0 - 1e-3)]
+    if not nulls:
+        return None
+    best = min(nulls, key=lambda r: r["fit"].cost)
+    start = {k: v for k, v in best["fit"].params.items() if k in current.params}
+    refit = shooting.fit_spec(cfg, current.spec, segments, start=start, states=best["fit"].states, max_iterations=POLISH_ITERATIONS)
+    return (refit, best["effect"]) if refit.cost < current.cost else None
+
+
+def _try_candidate(task):
+    """Fit one candidate and test it: (result dict, its null linearisation). Runs in a worker."""
+    (cfg, current, segments, fold, e_current, floor, bootstrap, seed), name = task
+    rng = np.random.default_rng([seed, registry.names().index(name)])  # the same draws in any worker
+    cand = fit_candidate(cfg, current, name, segments)
+    cand_red = _reduce(shooting.linearise(cfg, cand, segments), segments)
+    e_cand = cv_errors(cand_red, segments, fold, list(cand.free), cand.params, cfg)
+    draws = bootstrap_params(cand_red, list(cand.free), cand.params, cfg, rng, bootstrap)
+    params = _describe_params(cand, draws, cfg)
+    new = [p.name for p in registry.effect(name).params]
+    excluded = all(_null_excluded(n, params[n]["ci95"], cfg) for n in new) if new else True
+    if len(new) > 1:  # a vector effect (com_offset): one component away from null is enough
+        excluded = any(_null_excluded(n, params[n]["ci95"], cfg) for n in new)
+    result = {"effect": name, "fit": cand, "red": cand_red, "errors": e_cand, "z": signed_rank_z(e_current**2 - e_cand**2),
+              "params": params, "null_excluded": bool(excluded), "excess_share": excess_share(e_current, e_cand, floor),
+              "test_error": shooting.rms(e_cand), "at_bound": [n for n in new if params[n]["at_bound"]],
+              "converged": cand.converged, "iterations": cand.iterations}
+    return result, (name, *_null_linearisation(cfg, current, name, segments))
+
+
+def _map(function, tasks, workers):
+    """``function`` over ``tasks`` in order, in ``workers`` forked processes (1: here)."""
+    if workers <= 1 or len(tasks) <= 1:
+        return [function(task) for task in tasks]
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=multiprocessing.get_context("fork")) as pool:
+        return list(pool.map(function, tasks))
+
+
+def default_workers():
+    import os
+
+    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+
+
 def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=FOLDS, candidates=None, max_chain=MAX_CHAIN,
-             bootstrap=BOOTSTRAP, null_simulations=NULL_SIMULATIONS, log=None, angle_reading=None):
+             bootstrap=BOOTSTRAP, null_simulations=NULL_SIMULATIONS, log=None, angle_reading=None, workers=None):
     """Run the loop on tracked drops; returns the report dict (the JSON contract of
     docs/measured.md)."""
     say = log or (lambda message: None)
     rng = np.random.default_rng(seed)
+    workers = default_workers() if workers is None else workers
     noise = noise_floor(trackset, cfg)
     sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
     select_set, confirm_set = trackset.split(confirm_fraction, seed)
@@ -433,38 +497,40 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     say(f"{len(select)} selection and {len(confirm)} confirmation tracks ({seg_select.count} + {seg_confirm.count} flights); "
         f"noise floor {floor * 1000:.3f} mm; candidates: {', '.join(pool)}")
 
-    current = shooting.fit_spec(cfg, shooting.ModelSpec.of(cfg), seg_select)
+    current = shooting.fit_spec(cfg, shooting.ModelSpec.of(cfg), seg_select, max_iterations=POLISH_ITERATIONS)
     lin = shooting.linearise(cfg, current, seg_select)
     red = _reduce(lin, seg_select)
     e_current = cv_errors(red, seg_select, fold, list(current.free), current.params, cfg)
     baseline, baseline_red = current, red
     say(f"baseline: held-out {shooting.rms(e_current) * 1000:.3f} mm, {current.params}")
     chain, rounds = [], []
+    restarts = 0
     sigmas = (noise["sigma_x"], noise["sigma_y"], cfg.die.circumradius * noise["sigma_phi"])
     while len(chain) < max_chain:
         tried = [e for e in pool if e not in current.spec.effects]
         if not tried:
             break
-        results, null_lins = [], []
-        for name in tried:
-            cand = fit_candidate(cfg, current, name, seg_select)
-            cand_lin = shooting.linearise(cfg, cand, seg_select)
-            cand_red = _reduce(cand_lin, seg_select)
-            e_cand = cv_errors(cand_red, seg_select, fold, list(cand.free), cand.params, cfg)
-            z = signed_rank_z(e_current**2 - e_cand**2)
-            draws = bootstrap_params(cand_red, list(cand.free), cand.params, cfg, rng, bootstrap)
-            params = _describe_params(cand, draws, cfg)
-            new = [p.name for p in registry.effect(name).params]
-            excluded = all(_null_excluded(n, params[n]["ci95"], cfg) for n in new) if new else True
-            if len(new) > 1:  # a vector effect (com_offset): one component away from null is enough
-                excluded = any(_null_excluded(n, params[n]["ci95"], cfg) for n in new)
-            share = excess_share(e_current, e_cand, floor)
-            results.append({"effect": name, "fit": cand, "red": cand_red, "errors": e_cand, "z": z, "params": params,
-                            "null_excluded": bool(excluded), "excess_share": float(share),
-                            "test_error": shooting.rms(e_cand), "at_bound": [n for n in new if params[n]["at_bound"]]})
-            null_lins.append((name, *_null_linearisation(cfg, current, name, seg_select)))
-            say(f"  + {name}: held-out {shooting.rms(e_cand) * 1000:.3f} mm, z = {z:.2f}, share of excess {share:.0%}, "
-                f"null excluded: {excluded}, " + ", ".join(f"{n} = {params[n]['value']:.4g} {params[n]['ci95']}" for n in new))
+        job = (cfg, current, seg_select, fold, e_current, floor, bootstrap, seed)
+        outcomes = _map(_try_candidate, [(job, name) for name in tried], workers)
+        results = [r for r, _ in outcomes]
+        null_lins = [n for _, n in outcomes]
+        for r in results:
+            new = [p.name for p in registry.effect(r["effect"]).params]
+            say(f"  + {r['effect']}: held-out {r['test_error'] * 1000:.3f} mm, z = {r['z']:.2f}, share of excess {r['excess_share']:.0%}, "
+                f"null excluded: {r['null_excluded']}, " + ", ".join(f"{n} = {r['params'][n]['value']:.4g} {r['params'][n]['ci95']}" for n in new))
+        better = _better_optimum(cfg, current, results, seg_select, restarts)
+        if better is not None:
+            # a candidate whose own parameters stayed null found a lower cost for the others:
+            # that is the current model's optimum, not the candidate's gain; take it and redo
+            restarts += 1
+            say(f"  the current model has a lower optimum (found by {better[1]}): refitted, round repeated")
+            current = better[0]
+            lin = shooting.linearise(cfg, current, seg_select)
+            red = _reduce(lin, seg_select)
+            e_current = cv_errors(red, seg_select, fold, list(current.free), current.params, cfg)
+            if not chain:
+                baseline, baseline_red = current, red
+            continue
         threshold, sidak, sims = _null_threshold(cfg, current, lin, null_lins, seg_select, fold, sigmas, rng, null_simulations)
         for r in results:
             r["significant"] = r["z"] > threshold
@@ -479,8 +545,15 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         best = max(accepted, key=lambda r: r["excess_share"])
         chain.append({"step": len(chain) + 1, "effect": best["effect"], "z": best["z"], "threshold_z": threshold,
                       "excess_share": best["excess_share"], "test_error": best["test_error"]})
-        current, red, e_current = best["fit"], best["red"], best["errors"]
-        lin = red.lin
+        current = best["fit"]
+        if not current.converged:
+            # carried on, so that the next round's candidates are compared with a converged
+            # model and not credited with what more iterations give any model
+            current = shooting.fit_spec(cfg, current.spec, seg_select, start=current.params, states=current.states,
+                                        max_iterations=POLISH_ITERATIONS)
+        lin = shooting.linearise(cfg, current, seg_select)
+        red = _reduce(lin, seg_select)
+        e_current = cv_errors(red, seg_select, fold, list(current.free), current.params, cfg)
         say(f"added {best['effect']}: held-out {shooting.rms(e_current) * 1000:.3f} mm")
 
     # before and after on tracks that took no part in choosing
@@ -504,7 +577,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         "verdict_rule": (f"explained: median per-track error on confirmation tracks <= {EXPLAINED_FACTOR} x noise_floor; improved: "
                          "effects added, still above; unexplained: nothing added, above"),
         "signatures": signatures,
-        "signatures_remaining": _remaining(signatures) if verdict != "explained" else [],
+        "signatures_remaining": _remaining(signatures, floor) if verdict != "explained" else [],
         "effects_added": [step["effect"] for step in chain],
         "angle_reading": angle_reading or trackset.angle_note,
         "noise_floor": floor,

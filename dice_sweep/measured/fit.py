@@ -307,6 +307,10 @@ class FitResult:
     at_bound: dict  # name -> bool
 
 
+def relative_gain(cost, new_cost):
+    return (cost - new_cost) / max(cost, 1e-300)
+
+
 def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
     """Levenberg-Marquardt over ``free`` parameters and all states; returns (values, states,
     cost, iterations, converged)."""
@@ -318,6 +322,7 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
     converged = False
     iterations = 0
     small = 0
+    restarted = False
     bounds = [registry.param(name).bounds_of(model.cfg) for name in free]
     for iterations in range(1, max_iterations + 1):
         weight = _robust_weights(residual, scale)
@@ -344,21 +349,25 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
             trial_cost = _robust_cost(trial_residual, scale)
             if trial_cost < cost:
                 improved = True
+                restarted = restarted and relative_gain(cost, trial_cost) < TOLERANCE
                 relative = (cost - trial_cost) / max(cost, 1e-300)
                 values, states, residual, cost = trial_values, trial_states, trial_residual, trial_cost
                 used = damping
                 damping = max(damping / 3.0, 1e-7)
                 break
             damping *= 4.0
-        if not improved:
+        if improved:
+            # a small gain from a heavily damped step is not convergence: the next, less damped
+            # step may still go far (seen when a new parameter starts at the optimum of the others)
+            small = small + 1 if relative < TOLERANCE else 0
+            if not (small >= 2 and used <= 1e-2):
+                continue
+        # converged, unless a fresh, lightly damped start still goes somewhere: the damping
+        # grows on a rough cost, and a candidate refit later went 40 % lower from "converged"
+        if restarted:
             converged = True
             break
-        # a small gain from a heavily damped step is not convergence: the next, less damped
-        # step may still go far (seen when a new parameter starts at the optimum of the others)
-        small = small + 1 if relative < TOLERANCE else 0
-        if small >= 2 and used <= 1e-2:
-            converged = True
-            break
+        restarted, damping, small = True, 1e-3, 0
     return values, states, cost, iterations, converged
 
 

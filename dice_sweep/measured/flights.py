@@ -24,8 +24,8 @@ scaled by the noise (given, or the track's own, :func:`segment_track`) or by the
    Frames that two neighbouring flights both explain lie around their impact: neither keeps them.
 4. *Merges*: two neighbouring flights that one flight explains as well (a likelihood-ratio test,
    6 parameters) were split by noise, and are joined.
-5. The track ends at *sustained contact*: ``CONTACT_TIME`` with the lowest corner mostly in the
-   contact band, or a die that does not move.
+5. The track ends at *sustained contact*: ``CONTACT_TIME`` with the lowest corner in the
+   contact band (``CONTACT_SHARE`` of its frames), or a die that does not move.
 
 :func:`estimate_noise` fits every flight of many tracks and pools the residuals, corrected for
 the fitted parameters, with a bootstrap over tracks for the intervals.
@@ -54,8 +54,9 @@ MIN_FLIGHT_FRAMES = 4  # usable frames: fewer leave no check on a 2-parameter fi
 # data's flights curve at about 9.4 m/s^2) bend a flight away from -g: a Gaussian prior of this
 # width (in g) on each coordinate's curvature lets a fit absorb them.
 CURVATURE_TOLERANCE = 0.1
-# One-sided probability that a frame of a free flight fails a test by noise alone: 1e-3 ends
-# about one flight in 30 of 30 frames at a false alarm, and that only if the next frames fail too.
+# Probability that a frame of a free flight fails a chi-square test by noise alone: one flight
+# of 30 frames in 30 sees a false alarm, which ends it only if the next frames fail too (and
+# the merge test joins the pieces again).
 FALSE_ALARM = 1e-3
 CONFIRM_FRAMES = 2  # frames after a failing one that must pass for it to be a glitch ...
 MAX_OUTLIER_RUN = 2  # ... of at most this many frames (longer runs end the flight)
@@ -64,6 +65,8 @@ MAX_OUTLIER_RUN = 2  # ... of at most this many frames (longer runs end the flig
 CONTACT_SIGMAS = 2.0
 CONTACT_FLOOR = 0.01  # R
 CONTACT_TIME = 0.04  # s: a flight this long rises g t^2 / 8 = 2 mm; a contact this long is sustained
+CONTACT_SHARE = 0.8  # of CONTACT_TIME's frames in the contact band: sustained (a flat landing may
+# sit 20 ms on the table, then hop; noise lifts a frame at rest out of the band now and then)
 # A die whose pose scatters by less than this many sigma (rms) over CONTACT_TIME is still, if a
 # flight that long would move y by more than 1 / STILL_SHARE times that (else the test is off)
 STILL_SIGMAS = 2.0
@@ -180,7 +183,8 @@ def _normal_quantile(p):
 
 
 def _chi2_quantile(dof, p):
-    """Upper quantile of chi-square with ``dof`` degrees of freedom (Wilson-Hilferty)."""
+    """Upper quantile of chi-square with ``dof`` degrees of freedom (Wilson-Hilferty; at 3
+    degrees of freedom and p = 1e-3 it gives 16.55 for the exact 16.27)."""
     z = _normal_quantile(p)
     k = 2.0 / (9.0 * dof)
     return dof * (1.0 - k + z * math.sqrt(k)) ** 3
@@ -558,13 +562,13 @@ def _merge(track, found, outliers):
 
 def _sustained_contact(track, window):
     """First row of sustained contact: the first row at the table of ``window`` rows with the
-    lowest corner in the contact band in at least half of them, or the first of ``window`` rows
-    in which the die stays still (count if none)."""
+    lowest corner in the contact band in ``CONTACT_SHARE`` of them, or the first of ``window``
+    rows in which the die stays still (count if none)."""
     if track.count < window:
         return track.count
     low = track.height < track.band
     inside = np.concatenate(([0], np.cumsum(low)))
-    starts = np.flatnonzero(inside[window:] - inside[:-window] >= 0.5 * window)
+    starts = np.flatnonzero(inside[window:] - inside[:-window] >= CONTACT_SHARE * window)
     stop = int(starts[0] + np.argmax(low[starts[0] :])) if starts.size else track.count
     # still: each coordinate's spread over the window within STILL_SIGMAS sigma, when a flight
     # that long (rising and falling g t^2 / 8) could not be that still
@@ -742,7 +746,9 @@ def find_flights(t, x, y, phi, usable, *, sides, circumradius, g=9.81, noise=Non
         m/s^2.
     noise : sequence of 3 float, optional
         Tracking noise sigma of x, y (m) and phi (rad), e.g. :func:`estimate_noise` of the
-        track's set. Default: estimated from the track itself (:func:`segment_track`).
+        track's set. Default: estimated from the track itself (:func:`segment_track`). On
+        measured data pass the set's: one track's estimate is mostly its slow frames, and the
+        fast first fall may be tracked worse (blur).
     table : float
         Height of the table in the track's frame, m (e.g.
         :func:`dice_sweep.measured.impacts.table_level` of the dice at rest).

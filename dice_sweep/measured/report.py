@@ -112,7 +112,7 @@ def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md
     trackset = _load(data_path, cfg, rate, angle)
     report = loop.diagnose(trackset, cfg, log=log, angle_reading=f"--angle {angle}: {trackset.angle_note}", **options)
     fits = report.pop("_fits")
-    report["by_bounce"] = residual_by_bounce(cfg, fits)
+    report["by_bounce"], report["by_tilt"] = residual_by_bounce(cfg, fits)
     if png_dir:
         _, seg_confirm = fits["segments"]
         _, confirm = fits["prepared"]
@@ -127,7 +127,7 @@ def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md
 
 def residual_by_bounce(cfg, fits):
     """RMS error (m) of the confirmation tracks' frames predicted through impact k (k = 1, 2,
-    ...), before and after, with the number of tracks."""
+    ...), before and after, with the number of tracks; and the same by landing tilt."""
     seg_confirm = fits["segments"][1]
     out = []
     residuals = {}
@@ -141,6 +141,18 @@ def residual_by_bounce(cfg, fits):
         mine = np.flatnonzero(seg_confirm.track == i)
         index[mine] = np.arange(mine.size)
     bounce_of_row = index[seg_confirm.segment_rows] + 1
+    tilt = _landing_tilts(cfg, seg_confirm, fits["prepared"][1])
+    by_tilt = []
+    edges = np.linspace(0.0, math.pi / cfg.die.sides, TILT_BINS + 1)
+    for low, high in zip(edges[:-1], edges[1:]):
+        rows = seg_confirm.predicted & (tilt[seg_confirm.segment_rows] >= low) & (tilt[seg_confirm.segment_rows] < high + 1e-12)
+        if not rows.any():
+            continue
+        entry = {"tilt_deg": [math.degrees(low), math.degrees(high)], "tracks": int(np.unique(seg_confirm.track_rows[rows]).size),
+                 "impacts": int(np.unique(seg_confirm.segment_rows[rows]).size)}
+        for label, residual in residuals.items():
+            entry[label] = float(np.sqrt(np.mean(np.sum(residual[rows] ** 2, axis=1))))
+        by_tilt.append(entry)
     for k in range(1, int(bounce_of_row.max(initial=0)) + 1):
         rows = seg_confirm.predicted & (bounce_of_row == k)
         if not rows.any():
@@ -149,7 +161,24 @@ def residual_by_bounce(cfg, fits):
         for label, residual in residuals.items():
             entry[label] = float(np.sqrt(np.mean(np.sum(residual[rows] ** 2, axis=1))))
         out.append(entry)
-    return out
+    return out, by_tilt
+
+
+TILT_BINS = 3  # landing tilt bins from flat (0) to corner down (pi / n)
+
+
+def _landing_tilts(cfg, segments, prepared):
+    """Tilt (rad) of the lower side at each segment's impact: 0 flat, pi/n corner down, from
+    the tracked angle at the last frame of the segment's own flight."""
+    from dice_sweep.measured.impacts import landing_tilt
+
+    tilt = np.full(segments.count, np.nan)
+    for j in range(segments.count):
+        rows = np.arange(segments.starts[j], segments.starts[j + 1])
+        own = rows[~segments.predicted[rows]]
+        if own.size:
+            tilt[j] = landing_tilt(cfg.die.sides, segments.measured[own[-1], 2])
+    return tilt
 
 
 def _residual_pictures(cfg, fits, prepared, segments, png_dir):
@@ -236,6 +265,12 @@ def markdown_report(report):
         lines += ["## Error by impact (confirmation tracks, frames predicted through impact k)", "",
                   "| impact | tracks | before | after |", "|---|---|---|---|"]
         lines += [f"| {b['impact']} | {b['tracks']} | {_mm(b['baseline'])} | {_mm(b['after'])} |" for b in report["by_bounce"]]
+        lines.append("")
+    if report.get("by_tilt"):
+        lines += ["## Error by landing tilt (confirmation tracks, frames predicted through an impact; 0 deg = flat)", "",
+                  "| tilt | impacts | tracks | before | after |", "|---|---|---|---|---|"]
+        lines += [f"| {b['tilt_deg'][0]:.0f}-{b['tilt_deg'][1]:.0f} deg | {b['impacts']} | {b['tracks']} | {_mm(b['baseline'])} | {_mm(b['after'])} |"
+                  for b in report["by_tilt"]]
         lines.append("")
     lines += ["## Residual signatures after", "", "| signature | value | 95 % interval | unit | points to | meaning |", "|---|---|---|---|---|---|"]
     for s in report["signatures"]:

@@ -1,0 +1,42 @@
+"""Time `dice-sweep diagnose` on the 500 real drops (with intervals), the whole command in a
+fresh process, as a user runs it: ``python scripts/bench_measured.py [--runs N]``.
+
+Target (issue 14): at most 2 minutes on 2 cores. Skips cleanly without ../shared/data.
+"""
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT.parent / "shared" / "data" / "mcube_square_drops" / "drops.csv.gz"
+TARGET = 120.0  # s
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=1)
+    args = parser.parse_args()
+    if not DATA.exists():
+        print(f"skipped: {DATA} not found")
+        return 0
+    times = []
+    with tempfile.TemporaryDirectory() as folder:
+        report = Path(folder) / "report.json"
+        for _ in range(args.runs):
+            start = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "dice_sweep", "diagnose", str(DATA), "--config", str(ROOT / "configs" / "square_drops.toml"),
+                            "--angle", "auto", "--quiet", "--json", str(report)], check=True)
+            times.append(time.perf_counter() - start)
+        result = json.loads(report.read_text())
+    print(json.dumps({"diagnose_500_real_drops_s": times, "target_s": TARGET, "met": min(times) <= TARGET,
+                      "verdict": result["verdict"], "effects_added": result["effects_added"]}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
