@@ -64,6 +64,10 @@ class Param:
     def null_value(self, cfg):
         return float(self.null(cfg)) if callable(self.null) else float(self.null)
 
+    def starts_of(self, cfg):
+        """Start values (a callable of the config where they are relative to it, as for g)."""
+        return tuple(self.starts(cfg)) if callable(self.starts) else tuple(self.starts)
+
     def bounds_of(self, cfg):
         low, high = self.bounds(cfg)
         return float(low), float(high)
@@ -190,13 +194,14 @@ EFFECTS = (
     ),
     Effect(
         "gravity", "flight", "the acceleration of free fall differs from the declared [world] g",
-        params=(Param("g", "m/s^2", "world.g", lambda cfg: (0.5 * cfg.world.g, 1.5 * cfg.world.g), _declared_g, (), 0.1),),
+        params=(Param("g", "m/s^2", "world.g", lambda cfg: (0.5 * cfg.world.g, 1.5 * cfg.world.g), _declared_g,
+                      lambda cfg: (0.96 * cfg.world.g, 1.04 * cfg.world.g), 0.1),),
         signature="flight_vertical_curvature",
         signature_note="median extra vertical acceleration in free flight, the same for every track",
     ),
     Effect(
         "angle_offset", "measurement", "the tracker's angle zero is off: file phi = phi + offset",
-        params=(Param("angle_offset", "rad", "tracking.angle_offset", _fixed(-0.5, 0.5), 0.0, (), 0.01),),
+        params=(Param("angle_offset", "rad", "tracking.angle_offset", _fixed(-0.5, 0.5), 0.0, (0.02, -0.02), 0.01),),
         config_keys=(ConfigKey("tracking", "angle_offset", 0.0, "rad", low=-math.pi, high=math.pi),),
         measurement=Measurement(state_to_true=_shifted(2, -1.0), pose_to_file=_shifted(2, +1.0)),
         signature="impact_prediction",
@@ -205,7 +210,7 @@ EFFECTS = (
     Effect(
         "time_scale", "measurement",
         "the tracker's clock runs off: file t = time_scale * true t (a frame rate that is not the stated one)",
-        params=(Param("time_scale", "1", "tracking.time_scale", _fixed(0.8, 1.25), 1.0, (), 0.01),),
+        params=(Param("time_scale", "1", "tracking.time_scale", _fixed(0.8, 1.25), 1.0, (0.98, 1.02), 0.01),),
         config_keys=(ConfigKey("tracking", "time_scale", 1.0, "1", low=0.0, low_open=True),),
         # file t = s t: true time is t / s, true velocities s times the file's
         measurement=Measurement(times_to_true=lambda t, s: t / s, state_to_true=_scaled([3, 4, 5], lambda s: s)),
@@ -215,7 +220,7 @@ EFFECTS = (
     Effect(
         "length_scale", "measurement",
         "the tracker's length scale is off: file x, y = length_scale * true x, y (angles unchanged)",
-        params=(Param("length_scale", "1", "tracking.length_scale", _fixed(0.8, 1.25), 1.0, (), 0.01),),
+        params=(Param("length_scale", "1", "tracking.length_scale", _fixed(0.8, 1.25), 1.0, (0.97, 1.03), 0.01),),
         config_keys=(ConfigKey("tracking", "length_scale", 1.0, "1", low=0.0, low_open=True),),
         measurement=Measurement(state_to_true=_scaled([0, 1, 3, 4], lambda s: 1.0 / s), pose_to_file=_scaled([0, 1], lambda s: s)),
         signature="flight_vertical_curvature",
@@ -223,7 +228,7 @@ EFFECTS = (
     ),
     Effect(
         "table_offset", "measurement", "the tracker's height zero is not the table: file y = true y + offset",
-        params=(Param("table_offset", "m", "tracking.table_offset", lambda cfg: (-0.25 * cfg.die.circumradius, 0.25 * cfg.die.circumradius), 0.0, (), 1e-3),),
+        params=(Param("table_offset", "m", "tracking.table_offset", lambda cfg: (-0.25 * cfg.die.circumradius, 0.25 * cfg.die.circumradius), 0.0, (0.001, -0.001), 1e-3),),
         config_keys=(ConfigKey("tracking", "table_offset", 0.0, "m"),),
         measurement=Measurement(state_to_true=_shifted(1, -1.0), pose_to_file=_shifted(1, +1.0)),
         signature="impact_prediction",

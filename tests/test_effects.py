@@ -31,7 +31,7 @@ def test_each_entry_is_complete(name):
         null = p.null_value(CFG)
         assert low < high
         assert low <= null <= high or math.isinf(null)
-        for start in p.starts:
+        for start in p.starts_of(CFG):
             assert low <= start <= high
         assert p.scale > 0 and p.unit
         effects.get_key(CFG, p.key)  # the key exists in a config
@@ -43,7 +43,7 @@ def test_each_entry_is_complete(name):
 def test_physical_effects_reach_the_kernel(name):
     """Switching an effect on at a value away from its null changes the kernel's parameters."""
     entry = effects.effect(name)
-    values = {p.name: (p.starts[0] if p.starts else p.null_value(CFG) * 1.01) for p in entry.params}
+    values = {p.name: p.starts_of(CFG)[0] for p in entry.params}
     on = effects.with_values(CFG, (name,), values)
     if name != "gravity":  # g's null is the config's own value: it is never "declared"
         assert entry.is_declared(on)

@@ -213,17 +213,9 @@ def _start_grid(effect_name, cfg):
     params = registry.effect(effect_name).params
     if not params:
         return [{}]
-    count = max(len(p.starts) for p in params) or 1
-    grid = []
-    for k in range(count):
-        start = {}
-        for p in params:
-            if p.starts:
-                start[p.name] = p.starts[min(k, len(p.starts) - 1)]
-            else:
-                start[p.name] = p.null_value(cfg)
-        grid.append(start)
-    return grid
+    starts = {p.name: p.starts_of(cfg) or (p.null_value(cfg),) for p in params}
+    count = max(len(v) for v in starts.values())
+    return [{name: values[min(k, len(values) - 1)] for name, values in starts.items()} for k in range(count)]
 
 
 SCOUT_ITERATIONS = 6  # iterations each start gets before the best one is carried on
@@ -348,19 +340,28 @@ def _remaining(signatures, floor):
 # --- the loop --------------------------------------------------------------------------------
 
 
-def noise_floor(trackset, cfg):
+def table_height(trackset, cfg):
+    """Height of the table in the file (m): the median lowest-corner height of the dice that
+    end at rest, 0 when none does. Flights are cut where a corner meets this level."""
+    from dice_sweep.measured.impacts import rest_pose, table_level
+
+    rests = [rest_pose(tr.x, tr.y, tr.phi, tr.usable, cfg.die.circumradius, tr.t) for tr in trackset.tracks]
+    return table_level([p for p in rests if p is not None], sides=cfg.die.sides, circumradius=cfg.die.circumradius)
+
+
+def noise_floor(trackset, cfg, table=0.0):
     """Tracking noise from the free flights (bootstrap over tracks): a dict with the sigmas of
     x, y (m) and phi (rad), the pose noise floor sqrt(sx^2 + sy^2 + (R sphi)^2) (m) and their
     95 % intervals."""
-    est = estimate_noise(trackset.tracks, sides=cfg.die.sides, circumradius=cfg.die.circumradius, g=cfg.world.g)
+    est = estimate_noise(trackset.tracks, sides=cfg.die.sides, circumradius=cfg.die.circumradius, g=cfg.world.g, table=table)
     if not math.isfinite(est.pose):
         raise DiceSweepError(f"{trackset.path}: tracks: no free flight long enough to measure the tracking noise "
                              f"(allowed: tracks with flights of several frames)")
     return {"sigma_x": float(est.sigma[0]), "sigma_y": float(est.sigma[1]), "sigma_phi": float(est.sigma[2]),
             "sigma_ci95": [list(map(float, row)) for row in est.interval], "pose": float(est.pose),
             "pose_ci95": list(est.pose_interval), "tracks": est.tracks, "flights": est.flights, "frames": est.frames,
-            "method": "pooled residuals of ballistic fits over the free flights (x, phi linear, y quadratic), "
-                      "degrees of freedom corrected; 95 % intervals by bootstrap over tracks"}
+            "method": "pooled residuals of quadratic fits in t of x, y and R phi over the free flights (frames near the table "
+                      "left out), degrees of freedom corrected; 95 % intervals by bootstrap over tracks"}
 
 
 def _null_threshold(cfg, current, lin_current, candidates_lin, segments, fold, sigmas, rng, simulations):
@@ -434,24 +435,57 @@ def _better_optimum(cfg, current, results, segments, restarts):
     return (refit, best["effect"]) if refit.cost < current.cost else None
 
 
+def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng):
+    """The tests of a fitted candidate (one effect or a pair): held-out errors, statistic,
+    intervals, null and bounds."""
+    cand_red = _reduce(shooting.linearise(cfg, cand, segments), segments)
+    e_cand = cv_errors(cand_red, segments, fold, list(cand.free), cand.params, cfg)
+    draws = bootstrap_params(cand_red, list(cand.free), cand.params, cfg, rng, bootstrap)
+    params = _describe_params(cand, draws, cfg)
+    excluded, new = True, []
+    for name in names:
+        own = [p.name for p in registry.effect(name).params]
+        new += own
+        if own:  # a vector effect (com_offset): one component away from null is enough
+            excluded = excluded and any(_null_excluded(n, params[n]["ci95"], cfg) for n in own)
+    return {"effect": "+".join(names), "effects": list(names), "fit": cand, "red": cand_red, "errors": e_cand,
+            "z": signed_rank_z(e_current**2 - e_cand**2), "params": params, "null_excluded": bool(excluded),
+            "excess_share": excess_share(e_current, e_cand, floor), "test_error": shooting.rms(e_cand),
+            "at_bound": [n for n in new if params[n]["at_bound"]], "converged": cand.converged, "iterations": cand.iterations}
+
+
 def _try_candidate(task):
     """Fit one candidate and test it: (result dict, its null linearisation). Runs in a worker."""
     (cfg, current, segments, fold, e_current, floor, bootstrap, seed), name = task
     rng = np.random.default_rng([seed, registry.names().index(name)])  # the same draws in any worker
     cand = fit_candidate(cfg, current, name, segments)
-    cand_red = _reduce(shooting.linearise(cfg, cand, segments), segments)
-    e_cand = cv_errors(cand_red, segments, fold, list(cand.free), cand.params, cfg)
-    draws = bootstrap_params(cand_red, list(cand.free), cand.params, cfg, rng, bootstrap)
-    params = _describe_params(cand, draws, cfg)
-    new = [p.name for p in registry.effect(name).params]
-    excluded = all(_null_excluded(n, params[n]["ci95"], cfg) for n in new) if new else True
-    if len(new) > 1:  # a vector effect (com_offset): one component away from null is enough
-        excluded = any(_null_excluded(n, params[n]["ci95"], cfg) for n in new)
-    result = {"effect": name, "fit": cand, "red": cand_red, "errors": e_cand, "z": signed_rank_z(e_current**2 - e_cand**2),
-              "params": params, "null_excluded": bool(excluded), "excess_share": excess_share(e_current, e_cand, floor),
-              "test_error": shooting.rms(e_cand), "at_bound": [n for n in new if params[n]["at_bound"]],
-              "converged": cand.converged, "iterations": cand.iterations}
+    result = _test_fit(cfg, cand, (name,), segments, fold, e_current, floor, bootstrap, rng)
     return result, (name, *_null_linearisation(cfg, current, name, segments))
+
+
+def _pairs(results):
+    """Pairs worth fitting together when no single effect passes: the two with the largest
+    statistics, and every pair of contact effects (they act on the same impulse, so one may
+    help only with the other: a corner impulse only with friction capping it, say)."""
+    kind = {r["effect"]: registry.effect(r["effect"]).kind for r in results}
+    top = [r["effect"] for r in sorted(results, key=lambda r: -r["z"]) if r["z"] > 0][:2]
+    pairs = [tuple(top)] if len(top) == 2 else []
+    contact = [name for name in registry.names() if kind.get(name) == "contact"]
+    pairs += [(a, b) for i, a in enumerate(contact) for b in contact[i + 1:] if (a, b) not in pairs and (b, a) not in pairs]
+    return pairs
+
+
+def _try_pair(task):
+    """Fit a pair of effects together, from their single fits, and test it. Runs in a worker."""
+    (cfg, current, segments, fold, e_current, floor, bootstrap, seed, singles), names = task
+    spec = current.spec.with_effect(names[0]).with_effect(names[1])
+    start = dict(current.params)
+    for name in names:
+        start.update({k: v for k, v in singles[name].params.items() if k not in current.params})
+    best = min((singles[n] for n in names), key=lambda f: f.cost)
+    cand = shooting.fit_spec(cfg, spec, segments, start=start, states=best.states)
+    rng = np.random.default_rng([seed, 1000 + registry.names().index(names[0]), registry.names().index(names[1])])
+    return _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng)
 
 
 def _map(function, tasks, workers):
@@ -478,11 +512,12 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     say = log or (lambda message: None)
     rng = np.random.default_rng(seed)
     workers = default_workers() if workers is None else workers
-    noise = noise_floor(trackset, cfg)
+    table = table_height(trackset, cfg)
+    noise = noise_floor(trackset, cfg, table)
     sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
     select_set, confirm_set = trackset.split(confirm_fraction, seed)
-    select = shooting.prepare_tracks(select_set, cfg, noise=sigma)
-    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma)
+    select = shooting.prepare_tracks(select_set, cfg, noise=sigma, table=table)
+    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma, table=table)
     if len(select) < MIN_TRACKS or not confirm:
         raise DiceSweepError(
             f"{trackset.path}: tracks: {len(select)} selection and {len(confirm)} confirmation tracks have a first free flight of "
@@ -540,10 +575,27 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
                        "candidates": [{k: v for k, v in r.items() if k not in ("fit", "red", "errors")} for r in results]})
         accepted = [r for r in results if r["accepted"]]
         if not accepted:
+            from statistics import NormalDist
+
+            pairs = _pairs(results)
+            singles = {r["effect"]: r["fit"] for r in results}
+            tested = _map(_try_pair, [((cfg, current, seg_select, fold, e_current, floor, bootstrap, seed, singles), p) for p in pairs], workers)
+            # the pairs are more comparisons, chosen after seeing the singles: a stricter bound
+            pair_threshold = max(threshold, NormalDist().inv_cdf((1.0 - LEVEL) ** (1.0 / (len(results) + len(pairs)))))
+            for pair in tested:
+                pair["significant"] = pair["z"] > pair_threshold
+                pair["accepted"] = bool(pair["significant"] and pair["null_excluded"] and pair["excess_share"] >= MIN_EXCESS_SHARE
+                                       and not pair["at_bound"])
+                say(f"  + {pair['effect']} together: held-out {pair['test_error'] * 1000:.3f} mm, z = {pair['z']:.2f}, "
+                    f"share of excess {pair['excess_share']:.0%}, null excluded: {pair['null_excluded']}, added: {pair['accepted']}")
+            rounds[-1]["pair_threshold_z"] = pair_threshold
+            rounds[-1]["pairs"] = [{k: v for k, v in p.items() if k not in ("fit", "red", "errors")} for p in tested]
+            accepted = [p for p in tested if p["accepted"]]
+        if not accepted:
             say(f"stop: no candidate passes (threshold z = {threshold:.2f})")
             break
         best = max(accepted, key=lambda r: r["excess_share"])
-        chain.append({"step": len(chain) + 1, "effect": best["effect"], "z": best["z"], "threshold_z": threshold,
+        chain.append({"step": len(chain) + 1, "effect": best["effect"], "effects": best["effects"], "z": best["z"], "threshold_z": threshold,
                       "excess_share": best["excess_share"], "test_error": best["test_error"]})
         current = best["fit"]
         if not current.converged:
@@ -578,7 +630,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
                          "effects added, still above; unexplained: nothing added, above"),
         "signatures": signatures,
         "signatures_remaining": _remaining(signatures, floor) if verdict != "explained" else [],
-        "effects_added": [step["effect"] for step in chain],
+        "effects_added": [name for step in chain for name in step["effects"]],
         "angle_reading": angle_reading or trackset.angle_note,
         "noise_floor": floor,
         "noise": noise,
@@ -601,7 +653,8 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         "data": {"path": trackset.path, "tracks": len(trackset.tracks), "rate_hz": trackset.rate,
                  "selection_tracks": len(select), "confirmation_tracks": len(confirm),
                  "selection_flights": seg_select.count, "confirmation_flights": seg_confirm.count,
-                 "glitch_frames": trackset.glitch_count, "gap_frames": trackset.gap_frames},
+                 "glitch_frames": trackset.glitch_count, "gap_frames": trackset.gap_frames,
+                 "table_height_m": table, "table_note": "median lowest-corner height of the dice at rest (0: none at rest); flights are cut there"},
         "_fits": {"baseline": baseline, "after": current, "confirm_errors": (e_before, e_after),
                   "segments": (seg_select, seg_confirm), "prepared": (select, confirm)},
     }

@@ -87,7 +87,7 @@ def start_values(cfg, spec):
         entry = registry.param(name)
         value = float(registry.get_key(cfg, entry.key))
         if not math.isfinite(value):
-            value = entry.starts[0]
+            value = entry.starts_of(cfg)[0]
         low, high = entry.bounds_of(cfg)
         values[name] = min(max(value, low), high)
     return values
@@ -104,9 +104,9 @@ class PreparedTrack:
     t_impact: float  # s, file time of the first impact (end of the first flight), nan if none
 
 
-def prepare_tracks(trackset, cfg, noise=None):
+def prepare_tracks(trackset, cfg, noise=None, table=0.0):
     """Usable frames and flights of each track (``noise``: sigma of x, y, phi, or None to
-    estimate it per track). Frames a flight's fit rejects as glitches are left out; tracks
+    estimate it per track; ``table``: the table's height in the file, m). Frames a flight's fit rejects as glitches are left out; tracks
     whose first flight is shorter than MIN_FLIGHT_FRAMES are left out (nothing gives them a
     state)."""
     sides, radius, g = cfg.die.sides, cfg.die.circumradius, cfg.world.g
@@ -115,7 +115,7 @@ def prepare_tracks(trackset, cfg, noise=None):
         ok = track.usable
         if ok.sum() < MIN_FLIGHT_FRAMES:
             continue
-        seg = segment_track(track.t, track.x, track.y, track.phi, ok, sides=sides, circumradius=radius, g=g, noise=noise)
+        seg = segment_track(track.t, track.x, track.y, track.phi, ok, sides=sides, circumradius=radius, g=g, noise=noise, table=table)
         keep = ok & ~seg.outliers
         index = np.flatnonzero(keep)
         flights = []
@@ -123,7 +123,7 @@ def prepare_tracks(trackset, cfg, noise=None):
             inside = np.flatnonzero((index >= first) & (index <= last))
             if inside.size >= MIN_FLIGHT_FRAMES:
                 flights.append((int(inside[0]), int(inside[-1])))
-        if not flights or index[flights[0][0]] != index[0]:
+        if not flights:  # (frames before the first flight, such as a bad first frame, are left out)
             continue
         t = track.t[keep]
         pose = np.column_stack([track.x[keep], track.y[keep], track.phi[keep]])

@@ -65,11 +65,12 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
     with 95 % bootstrap intervals over tracks, and score it on the confirmation tracks."""
     check_outputs(json=json_path, png=png_dir)
     trackset = _load(data_path, cfg, rate, angle)
-    noise = loop.noise_floor(trackset, cfg)
+    table = loop.table_height(trackset, cfg)
+    noise = loop.noise_floor(trackset, cfg, table)
     sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
     select_set, confirm_set = trackset.split(loop.CONFIRM_FRACTION, seed)
-    select = shooting.prepare_tracks(select_set, cfg, noise=sigma)
-    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma)
+    select = shooting.prepare_tracks(select_set, cfg, noise=sigma, table=table)
+    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma, table=table)
     if len(select) < loop.MIN_TRACKS or not confirm:
         raise DiceSweepError(f"{data_path}: tracks: {len(select)} fitting and {len(confirm)} scoring tracks have a first free flight "
                              f"of {shooting.MIN_FLIGHT_FRAMES} frames or more (allowed: at least {loop.MIN_TRACKS} and 1)")
@@ -260,6 +261,12 @@ def markdown_report(report):
         for c in rnd["candidates"]:
             lines.append(f"| {c['effect']} | {_mm(c['test_error'])} | {c['z']:.2f} | {c['excess_share']:.0%} | "
                          f"{'yes' if c['null_excluded'] else 'no'} | {', '.join(c['at_bound']) or '-'} | {'yes' if c['accepted'] else 'no'} |")
+        if rnd.get("pairs"):
+            lines += ["", f"No single effect passed; pairs fitted together (threshold z = {rnd['pair_threshold_z']:.2f}):", "",
+                      "| effects | held-out error | z | share of excess | null excluded | at bound | added |", "|---|---|---|---|---|---|---|"]
+            for c in rnd["pairs"]:
+                lines.append(f"| {c['effect']} | {_mm(c['test_error'])} | {c['z']:.2f} | {c['excess_share']:.0%} | "
+                             f"{'yes' if c['null_excluded'] else 'no'} | {', '.join(c['at_bound']) or '-'} | {'yes' if c['accepted'] else 'no'} |")
         lines.append("")
     if report.get("by_bounce"):
         lines += ["## Error by impact (confirmation tracks, frames predicted through impact k)", "",

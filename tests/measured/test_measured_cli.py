@@ -2,26 +2,17 @@
 generator: the JSON contract, --json alone, Markdown with few tracks, and bad input."""
 
 import json
-import math
 
 import pytest
 from click.testing import CliRunner
 
 from dice_sweep.cli import main
+from tests.measured.cases import DECLARED_RIGID
+from tests.measured.cases import TRUTH as CASE_TRUTH
 from tests.measured.independent import Truth, simulate_drops, write_csv
 
-RADIUS = 0.06 / math.sqrt(2)
-CONFIG = f"""
-[die]
-sides = 4
-circumradius = {RADIUS!r}
-[contact]
-model = "rigid"
-beta_normal = 0.3
-beta_tangential = 0.0
-friction = 0.5
-"""
-TRUTH = Truth(contact="rigid", beta_normal=0.4, beta_tangential=0.0, friction=0.3)
+CONFIG = DECLARED_RIGID
+TRUTH = Truth(**CASE_TRUTH)
 
 
 @pytest.fixture(scope="module")

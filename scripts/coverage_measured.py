@@ -1,0 +1,55 @@
+"""How often the 95 % intervals of `dice-sweep fit` cover the truth: drops from the independent
+generator (tests/measured/independent.py), fitted with the true model, over many seeds.
+
+    python scripts/coverage_measured.py [--seeds 20] [--tracks 90]
+
+Prints, per parameter, the share of seeds whose interval covers the true value, the mean
+error and the mean half-width. Needs the tests folder (a checkout), not only the package.
+"""
+
+import argparse
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+
+from dice_sweep.config import parse_config  # noqa: E402
+from dice_sweep.measured.report import run_fit  # noqa: E402
+from tests.measured.cases import DECLARED_RIGID, NOISE, TRUE_COEFFICIENTS  # noqa: E402
+from tests.measured.independent import Truth, simulate_drops, write_csv  # noqa: E402
+
+TRUE = TRUE_COEFFICIENTS
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seeds", type=int, default=20)
+    parser.add_argument("--tracks", type=int, default=90)
+    args = parser.parse_args()
+    truth = Truth(contact="rigid", **TRUE)
+    rows = []
+    with tempfile.TemporaryDirectory() as folder:
+        for seed in range(args.seeds):
+            path = Path(folder) / f"d{seed}.csv"
+            write_csv(path, simulate_drops(truth, args.tracks, 100 + seed, rate=500.0, noise=NOISE, drop_prob=0.01, glitch_prob=0.002))
+            result = run_fit(path, parse_config(DECLARED_RIGID), seed=seed)
+            rows.append({name: (result["params"][name]["value"], *result["params"][name]["ci95"]) for name in TRUE})
+            print(json.dumps({"seed": seed, **rows[-1]}), file=sys.stderr)
+    summary = {}
+    for name, true in TRUE.items():
+        values = np.array([row[name] for row in rows])
+        covered = (values[:, 1] <= true) & (true <= values[:, 2])
+        summary[name] = {"true": true, "coverage": float(covered.mean()), "seeds": len(rows),
+                         "mean_error": float(np.mean(values[:, 0] - true)), "sd_of_estimates": float(np.std(values[:, 0])),
+                         "mean_half_width": float(np.mean(values[:, 2] - values[:, 1]) / 2)}
+    print(json.dumps(summary, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
