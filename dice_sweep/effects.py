@@ -22,8 +22,6 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 __all__ = ["ConfigKey", "Param", "Effect", "EFFECTS", "BASE_PARAMS", "effect", "config_key_specs", "set_key", "get_key",
            "declared_effects", "with_values", "param", "names"]
 
@@ -90,7 +88,7 @@ class Measurement:
 def _scaled(columns, factor_of):
     """A map multiplying ``columns`` of an array by factor_of(v)."""
     def apply(array, value):
-        out = np.array(array, dtype=float, copy=True)
+        out = array.astype(float)  # a copy (numpy arrays; numpy is not imported here, for a fast --help)
         out[:, columns] *= factor_of(value)
         return out
     return apply
@@ -98,17 +96,9 @@ def _scaled(columns, factor_of):
 
 def _shifted(column, sign):
     def apply(array, value):
-        out = np.array(array, dtype=float, copy=True)
+        out = array.astype(float)
         out[:, column] += sign * value
         return out
-    return apply
-
-
-def _compose(*maps):
-    def apply(array, value):
-        for step in maps:
-            array = step(array, value)
-        return array
     return apply
 
 
