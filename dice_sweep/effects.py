@@ -114,6 +114,8 @@ class Effect:
     config_keys: tuple = ()  # ConfigKey entries this effect adds to the config schema
     switch: tuple = ()  # (key, value) set when the effect is added, e.g. contact.model = rigid
     measurement: Measurement = None  # measurement effects: how the tracker maps the motion
+    # effects no motion can tell from this one (the loop names them together)
+    equivalent: tuple = ()
     signature: str = ""  # the residual signature (diagnose) that points to this effect
     signature_note: str = ""
 
@@ -188,6 +190,10 @@ EFFECTS = (
                       lambda cfg: (0.96 * cfg.world.g, 1.04 * cfg.world.g), 0.1),),
         signature="flight_vertical_curvature",
         signature_note="median extra vertical acceleration in free flight, the same for every track",
+        # sqrt(R/g) is the only time scale of the model (restitution, friction and quadratic
+        # drag are scale-free; only speed_restitution's k carries one): a clock off by s
+        # looks exactly like g / s^2 (tests/measured/test_diagnose.py found each named as the other)
+        equivalent=("time_scale",),
     ),
     Effect(
         "angle_offset", "measurement", "the tracker's angle zero is off: file phi = phi + offset",
@@ -206,6 +212,7 @@ EFFECTS = (
         measurement=Measurement(times_to_true=lambda t, s: t / s, state_to_true=_scaled([3, 4, 5], lambda s: s)),
         signature="flight_vertical_curvature",
         signature_note="free-flight curvature off g by the same factor for every track, with the die's size right at contact",
+        equivalent=("gravity",),
     ),
     Effect(
         "length_scale", "measurement",
@@ -336,5 +343,7 @@ def markdown_table():
         params = "; ".join(f"{p.name} ({p.unit}, null {p.null if not callable(p.null) else 'the declared value'})" for p in e.params) or "-"
         key = f"`{e.switch[0]} = \"{e.switch[1]}\"`" if e.switch else ", ".join(f"`{p.key}`" for p in e.params)
         summary = e.summary.replace("|", "\\|")  # a pipe would end the table cell
+        if e.equivalent:
+            summary += f" (no motion tells it from {', '.join(e.equivalent)})"
         lines.append(f"| {e.name} | {e.kind} | {summary} | {params} | {key} | {e.signature}: {e.signature_note} |")
     return "\n".join(lines)

@@ -595,7 +595,9 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
             say(f"stop: no candidate passes (threshold z = {threshold:.2f})")
             break
         best = max(accepted, key=lambda r: r["excess_share"])
-        chain.append({"step": len(chain) + 1, "effect": best["effect"], "effects": best["effects"], "z": best["z"], "threshold_z": threshold,
+        equivalent = sorted({e for name in best["effects"] for e in registry.effect(name).equivalent})
+        chain.append({"step": len(chain) + 1, "effect": best["effect"], "effects": best["effects"], "equivalent": equivalent,
+                      "z": best["z"], "threshold_z": threshold,
                       "excess_share": best["excess_share"], "test_error": best["test_error"]})
         current = best["fit"]
         if not current.converged:
@@ -631,6 +633,8 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         "signatures": signatures,
         "signatures_remaining": _remaining(signatures, floor) if verdict != "explained" else [],
         "effects_added": [name for step in chain for name in step["effects"]],
+        "equivalent_effects": {name: list(registry.effect(name).equivalent) for step in chain for name in step["effects"]
+                               if registry.effect(name).equivalent},
         "angle_reading": angle_reading or trackset.angle_note,
         "noise_floor": floor,
         "noise": noise,

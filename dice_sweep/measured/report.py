@@ -234,7 +234,9 @@ def markdown_report(report):
     """A readable summary of a diagnose report (works for any number of tracks)."""
     floor = report["noise_floor"]
     lines = ["# Diagnosis of tracked drops", "",
-             f"**Verdict: {report['verdict']}.** Effects added: {', '.join(report['effects_added']) or 'none'}.", "",
+             f"**Verdict: {report['verdict']}.** Effects added: {', '.join(report['effects_added']) or 'none'}."
+             + "".join(f" No motion can tell {name} from {', '.join(others)} (the same data, another parameter)."
+                       for name, others in report.get("equivalent_effects", {}).items()), "",
              f"Metric: {report['metric']}.", "", f"Selection: {report['selection']}.", ""]
     data = report["data"]
     noise = report["noise"]
