@@ -412,10 +412,11 @@ def _null_linearisation(cfg, current, effect_name, segments):
 
 
 def _confirm(cfg, fit, segments):
-    """Per-track errors on confirmation tracks: states fitted, parameters held."""
+    """Per-track errors on confirmation tracks (states fitted, parameters held) and the
+    residual rows (m) they come from."""
     held = shooting.fit_spec(cfg, fit.spec, segments, start=fit.params, fixed=True)
-    model = shooting.ShootingModel(cfg, fit.spec, segments)
-    return shooting.track_errors(segments, model.residuals(held.params, held.states)), held
+    residual = shooting.ShootingModel(cfg, fit.spec, segments).residuals(held.params, held.states)
+    return shooting.track_errors(segments, residual), residual
 
 
 MAX_RESTARTS = 2  # times a round may be repeated because the current model found a lower optimum
@@ -611,8 +612,8 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         say(f"added {best['effect']}: held-out {shooting.rms(e_current) * 1000:.3f} mm")
 
     # before and after on tracks that took no part in choosing
-    e_before, _ = _confirm(cfg, baseline, seg_confirm)
-    e_after, _ = _confirm(cfg, current, seg_confirm)
+    e_before, residual_before = _confirm(cfg, baseline, seg_confirm)
+    e_after, residual_after = _confirm(cfg, current, seg_confirm)
     draws_before = bootstrap_params(baseline_red, list(baseline.free), baseline.params, cfg, rng, bootstrap)
     draws_after = bootstrap_params(red, list(current.free), current.params, cfg, rng, bootstrap)
     after_error = shooting.rms(e_after)
@@ -660,6 +661,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
                  "glitch_frames": trackset.glitch_count, "gap_frames": trackset.gap_frames,
                  "table_height_m": table, "table_note": "median lowest-corner height of the dice at rest (0: none at rest); flights are cut there"},
         "_fits": {"baseline": baseline, "after": current, "confirm_errors": (e_before, e_after),
+                  "confirm_residuals": {"baseline": residual_before, "after": residual_after},
                   "segments": (seg_select, seg_confirm), "prepared": (select, confirm)},
     }
     params = {}

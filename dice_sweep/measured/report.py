@@ -84,7 +84,7 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
     red = loop._reduce(shooting.linearise(cfg, fit, seg_select), seg_select)
     draws = loop.bootstrap_params(red, list(fit.free), fit.params, cfg, rng)
     e_train = shooting.track_errors(seg_select, shooting.ShootingModel(cfg, spec, seg_select).residuals(fit.params, fit.states))
-    e_test, _ = loop._confirm(cfg, fit, seg_confirm)
+    e_test, residual_test = loop._confirm(cfg, fit, seg_confirm)
     result = {
         "metric": loop.METRIC,
         "model": cfg.contact.model if "corner_impulse" not in extra else "rigid",
@@ -103,7 +103,7 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
     if json_path:
         _write_atomic(json_path, json.dumps(_jsonable(result), indent=2) + "\n")
     if png_dir:
-        _residual_pictures(cfg, [("fit", fit)], confirm, seg_confirm, Path(png_dir))
+        _residual_pictures({"fit": residual_test}, confirm, seg_confirm, Path(png_dir))
     return result
 
 
@@ -117,7 +117,7 @@ def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md
     if png_dir:
         _, seg_confirm = fits["segments"]
         _, confirm = fits["prepared"]
-        report["pictures"] = _residual_pictures(cfg, [("baseline", fits["baseline"]), ("after", fits["after"])], confirm, seg_confirm, Path(png_dir))
+        report["pictures"] = _residual_pictures(fits["confirm_residuals"], confirm, seg_confirm, Path(png_dir))
     report = _jsonable(report)
     if json_path:
         _write_atomic(json_path, json.dumps(report, indent=2) + "\n")
@@ -131,17 +131,9 @@ def residual_by_bounce(cfg, fits):
     ...), before and after, with the number of tracks; and the same by landing tilt."""
     seg_confirm = fits["segments"][1]
     out = []
-    residuals = {}
-    for label in ("baseline", "after"):
-        fit = fits[label]
-        held = shooting.fit_spec(cfg, fit.spec, seg_confirm, start=fit.params, fixed=True)
-        residuals[label] = shooting.ShootingModel(cfg, fit.spec, seg_confirm).residuals(held.params, held.states)
+    residuals = fits["confirm_residuals"]
     # segment index within its track = which impact its prediction crosses
-    index = np.zeros(seg_confirm.count, dtype=np.int64)
-    for i in range(seg_confirm.tracks):
-        mine = np.flatnonzero(seg_confirm.track == i)
-        index[mine] = np.arange(mine.size)
-    bounce_of_row = index[seg_confirm.segment_rows] + 1
+    bounce_of_row = _flight_index(seg_confirm)[seg_confirm.segment_rows] + 1
     tilt = _landing_tilts(cfg, seg_confirm, fits["prepared"][1])
     by_tilt = []
     edges = np.linspace(0.0, math.pi / cfg.die.sides, TILT_BINS + 1)
@@ -182,21 +174,17 @@ def _landing_tilts(cfg, segments, prepared):
     return tilt
 
 
-def _residual_pictures(cfg, fits, prepared, segments, png_dir):
-    """Per-frame pose error against time from the first impact, one curve per fit."""
+def _residual_pictures(residuals, prepared, segments, png_dir):
+    """Per-frame pose error against time from the first impact, one curve per residual
+    (label -> (rows, 3) m, on ``segments``)."""
     from dice_sweep.plotting import plot_residual_curves
 
     png_dir.mkdir(parents=True, exist_ok=True)
-    curves = []
     t_impact = np.array([p.t_impact for p in prepared])
-    for label, fit in fits:
-        held = shooting.fit_spec(cfg, fit.spec, segments, start=fit.params, fixed=True)
-        residual = shooting.ShootingModel(cfg, fit.spec, segments).residuals(held.params, held.states)
-        errors = np.sqrt(np.sum(residual**2, axis=1))
-        seg_t0 = np.array([prepared[segments.track[j]].t[prepared[segments.track[j]].flights[k][0]]
-                           for j, k in zip(range(segments.count), _flight_index(segments))])
-        since = segments.times + seg_t0[segments.segment_rows] - t_impact[segments.track_rows]
-        curves.append((label, since, errors))
+    seg_t0 = np.array([prepared[segments.track[j]].t[prepared[segments.track[j]].flights[k][0]]
+                       for j, k in zip(range(segments.count), _flight_index(segments))])
+    since = segments.times + seg_t0[segments.segment_rows] - t_impact[segments.track_rows]
+    curves = [(label, since, np.sqrt(np.sum(residual**2, axis=1))) for label, residual in residuals.items()]
     path = png_dir / "residual_error_vs_time.png"
     plot_residual_curves(curves, path)
     return [str(path)]
