@@ -26,7 +26,6 @@ The steps (docs/measured.md states them for users):
    when nothing was added and it is above; then the residual signatures that remain are listed.
 """
 
-import hashlib
 import math
 from dataclasses import dataclass
 
@@ -36,6 +35,7 @@ from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.flights import estimate_noise
+from dice_sweep.measured.tracks import _split_hash
 
 CONFIRM_FRACTION = 0.3
 FOLDS = 5
@@ -56,13 +56,9 @@ METRIC = (
 )
 
 
-def _hash_rank(seed, traj):
-    return int.from_bytes(hashlib.sha256(f"fold:{seed}:{traj}".encode()).digest()[:8], "big")
-
-
 def _folds(prepared, folds, seed):
     """Fold index (0..folds-1) of each track, balanced, fixed by the trajectory ids."""
-    order = sorted(range(len(prepared)), key=lambda i: _hash_rank(seed, prepared[i].traj))
+    order = sorted(range(len(prepared)), key=lambda i: _split_hash(f"fold:{seed}", prepared[i].traj))
     fold = np.zeros(len(prepared), dtype=np.int64)
     for rank, i in enumerate(order):
         fold[i] = rank % folds
@@ -173,15 +169,23 @@ def bootstrap_params(red, names, values, cfg, rng, draws=BOOTSTRAP):
     return out
 
 
+def _bootstrap_quantiles(values, statistic, rng, draws):
+    """2.5 % and 97.5 % quantiles of ``statistic`` over resamples of ``values`` (tracks)."""
+    stats = [statistic(values[rng.integers(0, values.size, values.size)]) for _ in range(draws)]
+    return [float(np.quantile(stats, 0.025)), float(np.quantile(stats, 0.975))]
+
+
+def _finite(values):
+    values = np.asarray(values, dtype=float)
+    return values[np.isfinite(values)]
+
+
 def bootstrap_rms(errors, rng, draws=BOOTSTRAP):
     """95 % interval of the RMS over tracks of per-track errors, bootstrap over tracks."""
-    errors = np.asarray(errors, dtype=float)
-    errors = errors[np.isfinite(errors)]
+    errors = _finite(errors)
     if errors.size == 0:
         return [math.nan, math.nan]
-    sq = errors**2
-    means = np.array([sq[rng.integers(0, sq.size, sq.size)].mean() for _ in range(draws)])
-    return [float(np.sqrt(np.quantile(means, 0.025))), float(np.sqrt(np.quantile(means, 0.975)))]
+    return [math.sqrt(q) for q in _bootstrap_quantiles(errors**2, np.mean, rng, draws)]
 
 
 def excess_share(e_current, e_candidate, floor):
@@ -196,12 +200,10 @@ def excess_share(e_current, e_candidate, floor):
 
 def median_interval(errors, rng, draws=BOOTSTRAP):
     """Median over tracks of per-track errors and its 95 % interval (bootstrap over tracks)."""
-    errors = np.asarray(errors, dtype=float)
-    errors = errors[np.isfinite(errors)]
+    errors = _finite(errors)
     if errors.size == 0:
         return math.nan, [math.nan, math.nan]
-    medians = [np.median(errors[rng.integers(0, errors.size, errors.size)]) for _ in range(draws)]
-    return float(np.median(errors)), [float(np.quantile(medians, 0.025)), float(np.quantile(medians, 0.975))]
+    return float(np.median(errors)), _bootstrap_quantiles(errors, np.median, rng, draws)
 
 
 # --- one candidate ---------------------------------------------------------------------------
@@ -316,8 +318,7 @@ def residual_signatures(prepared, segments, residual, radius):
         if values.size < 3:
             out.append({"signature": name, "value": math.nan, "ci95": [math.nan, math.nan], "unit": unit, "points_to": points, "note": note})
             continue
-        medians = [np.median(values[rng.integers(0, values.size, values.size)]) for _ in range(500)]
-        out.append({"signature": name, "value": float(np.median(values)), "ci95": [float(np.quantile(medians, 0.025)), float(np.quantile(medians, 0.975))],
+        out.append({"signature": name, "value": float(np.median(values)), "ci95": _bootstrap_quantiles(values, np.median, rng, 500),
                     "unit": unit, "points_to": points or ["none in the library"], "note": note, "tracks": int(values.size)})
     return out
 
@@ -364,13 +365,18 @@ def noise_floor(trackset, cfg, table=0.0):
                       "left out), degrees of freedom corrected; 95 % intervals by bootstrap over tracks"}
 
 
+def sidak_bound(comparisons):
+    """One-sided normal quantile that keeps the chance of any of ``comparisons`` passing by
+    chance at LEVEL."""
+    from statistics import NormalDist
+
+    return NormalDist().inv_cdf((1.0 - LEVEL) ** (1.0 / max(comparisons, 1)))
+
+
 def _null_threshold(cfg, current, lin_current, candidates_lin, segments, fold, sigmas, rng, simulations):
     """95 % quantile of the largest signed-rank statistic over the candidates in data simulated
     from the current model (its linearisation) with the tracking noise, and the Sidak bound."""
-    from statistics import NormalDist
-
-    count = max(len(candidates_lin), 1)
-    sidak = NormalDist().inv_cdf((1.0 - LEVEL) ** (1.0 / count))
+    sidak = sidak_bound(len(candidates_lin))
     usable = [(name, lin, names) for name, lin, names in candidates_lin if lin is not None]
     if not usable or simulations <= 0:
         return sidak, sidak, 0
@@ -576,13 +582,11 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
                        "candidates": [{k: v for k, v in r.items() if k not in ("fit", "red", "errors")} for r in results]})
         accepted = [r for r in results if r["accepted"]]
         if not accepted:
-            from statistics import NormalDist
-
             pairs = _pairs(results)
             singles = {r["effect"]: r["fit"] for r in results}
             tested = _map(_try_pair, [((cfg, current, seg_select, fold, e_current, floor, bootstrap, seed, singles), p) for p in pairs], workers)
             # the pairs are more comparisons, chosen after seeing the singles: a stricter bound
-            pair_threshold = max(threshold, NormalDist().inv_cdf((1.0 - LEVEL) ** (1.0 / (len(results) + len(pairs)))))
+            pair_threshold = max(threshold, sidak_bound(len(results) + len(pairs)))
             for pair in tested:
                 pair["significant"] = pair["z"] > pair_threshold
                 pair["accepted"] = bool(pair["significant"] and pair["null_excluded"] and pair["excess_share"] >= MIN_EXCESS_SHARE

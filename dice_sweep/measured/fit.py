@@ -349,8 +349,8 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
             trial_cost = _robust_cost(trial_residual, scale)
             if trial_cost < cost:
                 improved = True
-                restarted = restarted and relative_gain(cost, trial_cost) < TOLERANCE
-                relative = (cost - trial_cost) / max(cost, 1e-300)
+                relative = relative_gain(cost, trial_cost)
+                restarted = restarted and relative < TOLERANCE
                 values, states, residual, cost = trial_values, trial_states, trial_residual, trial_cost
                 used = damping
                 damping = max(damping / 3.0, 1e-7)
