@@ -34,6 +34,7 @@ import numpy as np
 from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured import fit as shooting
+from dice_sweep.measured.fit import relative_gain as relative_fall
 from dice_sweep.measured.flights import estimate_noise
 from dice_sweep.measured.tracks import _split_hash
 
@@ -66,78 +67,127 @@ def _folds(prepared, folds, seed):
 
 
 # --- the reduced (states eliminated) problem of a fit --------------------------------------------
+#
+# With each segment's state refitted to first order, a parameter step ``dp`` moves a row's
+# residual r to r~ + C dp, where r~ = r - B x (x = inv(Hss) gs: the states alone refitted) and
+# C = A - B X (X = inv(Hss) Hsp) the reduced Jacobian; A, B are the row's Jacobians in the
+# parameters and in its segment's state, H and g the weighted normal blocks. A track's squared
+# error after a step is then q + 2 dp.v + dp^T U dp, with q = sum |r~|^2, v = sum C^T r~ and
+# U = sum C^T C over its rows, all sums of per-segment blocks: nothing per row is needed once
+# the blocks are known, and everything is linear in r, so one residual or a batch of simulated
+# noise residuals (a trailing axis S) costs a product per segment.
 
 
 @dataclass
 class Reduced:
-    """Per-track pieces of a fit's normal equations with the states eliminated."""
+    """The residual-independent pieces of a fit's reduced problem."""
 
     lin: shooting.Linearisation
-    hss_inv: np.ndarray  # (segments, 6, 6)
-    hsp: np.ndarray  # (segments, 6, p)
-    gs: np.ndarray  # (segments, 6)
-    M: np.ndarray  # (tracks, p, p)
-    b: np.ndarray  # (tracks, p)
+    weight: np.ndarray  # (rows,) the weights of the refits
+    hss_inv: np.ndarray  # (segments, 6, 6) weighted
+    solved: np.ndarray  # (segments, 6, p): X
+    plain: tuple  # unweighted (hss, hsp) per segment: errors are unweighted RMS
+    M: np.ndarray  # (tracks, p, p): weighted reduced normal matrix (the refits)
+    U: np.ndarray  # (tracks, p, p): unweighted sum of C^T C (the errors)
 
 
-def _reduce(lin, segments, residual=None, weight=None, centre=True):
-    """Reduced normal equations per track (residual and weights default to the fit's)."""
-    use = shooting.Linearisation(lin.residual if residual is None else residual, lin.weight if weight is None else weight,
-                                 lin.jac_params, lin.jac_states)
-    hss, hsp, hpp, gs, gp = shooting._normal_blocks(use, segments.starts)
+@dataclass
+class Projected:
+    """A residual (or a batch) on the reduced problem, per track: ``q`` (tracks, ...), ``v`` and
+    ``b`` (the weighted gradient of the refits), (tracks, p, ...)."""
+
+    q: np.ndarray
+    v: np.ndarray
+    b: np.ndarray
+
+
+def _jac(lin):
+    return np.concatenate([lin.jac_states, lin.jac_params], axis=2)
+
+
+def _by_track(values, segments):
+    """Sums over each track's segments (segments are grouped by track) -> (tracks, ...)."""
+    return shooting._segment_sums(values, segments.track_segment_starts)
+
+
+def _reduce(lin, segments, weight=None):
+    """The reduced pieces of a linearisation (weights default to the fit's)."""
+    weight = lin.weight if weight is None else weight
+    jac = _jac(lin)
+    unit = np.ones_like(weight)
+    hessian, _ = shooting.segment_products(jac, weight, lin.residual, segments.starts)
+    plain = hessian if np.array_equal(weight, unit) else shooting.segment_products(jac, unit, lin.residual, segments.starts)[0]
+    hss, hsp, hpp = hessian[:, :6, :6], hessian[:, :6, 6:], hessian[:, 6:, 6:]
     inv = shooting._damped_inverse(hss, 0.0)
-    m_seg = hpp - np.einsum("sji,sjk,skl->sil", hsp, inv, hsp)
-    b_seg = gp - np.einsum("sji,sjk,sk->si", hsp, inv, gs)
-    p = hsp.shape[2]
-    M = np.zeros((segments.tracks, p, p))
-    b = np.zeros((segments.tracks, p))
-    np.add.at(M, segments.track, m_seg)
-    np.add.at(b, segments.track, b_seg)
+    X = inv @ hsp
+    M = _by_track(hpp - hsp.transpose(0, 2, 1) @ X, segments)
+    uss, usp, upp = plain[:, :6, :6], plain[:, :6, 6:], plain[:, 6:, 6:]
+    cross = usp.transpose(0, 2, 1) @ X
+    U = _by_track(upp - cross - cross.transpose(0, 2, 1) + X.transpose(0, 2, 1) @ uss @ X, segments)
+    return Reduced(lin, weight, inv, X, (uss, usp), M, U)
+
+
+def _project(red, segments, residual=None, centre=True):
+    """A residual (rows, 3) or a batch (rows, 3, S), default the fit's own, on the reduced
+    problem (:class:`Projected`)."""
+    residual = red.lin.residual if residual is None else residual
+    single = residual.ndim == 2
+    residual = residual[:, :, None] if single else residual
+    jac = _jac(red.lin)
+    unit = np.ones_like(red.weight)
+    _, grad_w = shooting.segment_products(jac, red.weight, residual, segments.starts, hessian=False)
+    if np.array_equal(red.weight, unit):
+        grad_u = grad_w
+    else:
+        _, grad_u = shooting.segment_products(jac, unit, residual, segments.starts, hessian=False)
+    rr = shooting._segment_sums(np.sum(residual * residual, axis=1), segments.starts)  # (segments, S)
+    uss, usp = red.plain
+    Xt = red.solved.transpose(0, 2, 1)
+    x = red.hss_inv @ grad_w[:, :6]  # (segments, 6, S): the states' refit
+    b = grad_w[:, 6:] - Xt @ grad_w[:, :6]
+    gs_u, gp_u = grad_u[:, :6], grad_u[:, 6:]
+    q = rr - 2.0 * np.sum(x * gs_u, axis=1) + np.sum(x * (uss @ x), axis=1)
+    v = gp_u - usp.transpose(0, 2, 1) @ x - Xt @ gs_u + Xt @ (uss @ x)
+    q, v, b = _by_track(q, segments), _by_track(v, segments), _by_track(b, segments)
     if centre:
         # the fit is taken as the optimum: what is left of the gradient (a bound, a rough
         # cost) is spread evenly, so refits and resamples move only by the tracks they drop
-        b -= b.mean(axis=0)
-    return Reduced(use, inv, hsp, gs, M, b)
+        b = b - b.mean(axis=0)
+    if single:
+        q, v, b = q[:, 0], v[:, :, 0], b[:, :, 0]
+    return Projected(q, v, b)
 
 
 def _solve(M, b):
-    """-(M)^-1 b with a small ridge for directions the tracks do not pin."""
+    """-(M)^-1 b with a small ridge for directions the tracks do not pin (b: (p,) or (p, S))."""
     p = M.shape[0]
     if p == 0:
-        return np.zeros(0)
+        return np.zeros(b.shape)
     ridge = 1e-9 * max(float(np.trace(M)) / p, 1e-30)
     return -np.linalg.solve(M + ridge * np.eye(p), b)
 
 
 def _clip_step(values, names, step, cfg):
-    """Step on the parameters kept inside their bounds."""
-    clipped = np.array(step, dtype=float)
-    for k, name in enumerate(names):
-        low, high = registry.param(name).bounds_of(cfg)
-        clipped[k] = min(max(values[name] + step[k], low), high) - values[name]
-    return clipped
+    """Step on the parameters (p,) or (p, S) kept inside their bounds."""
+    base = np.array([values[n] for n in names], dtype=float).reshape((-1,) + (1,) * (np.ndim(step) - 1))
+    bounds = np.array([registry.param(n).bounds_of(cfg) for n in names], dtype=float).reshape((-1, 2) + (1,) * (np.ndim(step) - 1))
+    return np.clip(base + step, bounds[:, 0], bounds[:, 1]) - base
 
 
-def cv_errors(red, segments, fold, names, values, cfg):
-    """Per-track held-out RMS errors (m): K-fold over tracks, each fold's refit one Newton step
-    of the reduced problem, the held-out tracks' states refitted to first order."""
-    lin = red.lin
-    errors = np.zeros(segments.tracks)
-    e2_rows = np.zeros(lin.residual.shape[0])
+def cv_errors(red, segments, fold, names, values, cfg, projected=None):
+    """Per-track held-out RMS errors (m), (tracks,) or (tracks, S) for a batch of residuals:
+    K-fold over tracks, each fold's refit one Newton step of the reduced problem, the held-out
+    tracks' states refitted to first order. ``projected``: from :func:`_project`, default the
+    fit's own residual."""
+    pr = _project(red, segments) if projected is None else projected
+    e2 = np.array(pr.q, dtype=float)
     for k in np.unique(fold):
         keep = fold != k
-        step = _solve(red.M[keep].sum(axis=0), red.b[keep].sum(axis=0))
-        step = _clip_step(values, names, step, cfg)
-        held = np.flatnonzero(fold[segments.track] == k)  # segments of held-out tracks
-        ds = -np.einsum("sij,sj->si", red.hss_inv[held], red.gs[held] + np.einsum("sij,j->si", red.hsp[held], step))
-        rows = np.flatnonzero(np.isin(segments.segment_rows, held))
-        local = np.searchsorted(held, segments.segment_rows[rows])
-        moved = lin.residual[rows] + lin.jac_params[rows] @ step + np.einsum("rkj,rj->rk", lin.jac_states[rows], ds[local])
-        e2_rows[rows] = np.einsum("ij,ij->i", moved, moved)
-    sums = np.bincount(segments.track_rows, e2_rows, minlength=segments.tracks)
-    counts = np.bincount(segments.track_rows, minlength=segments.tracks)
-    errors = np.sqrt(sums / np.maximum(counts, 1))
-    return errors
+        step = _clip_step(values, names, _solve(red.M[keep].sum(axis=0), pr.b[keep].sum(axis=0)), cfg)  # (p, ...)
+        held = fold == k
+        e2[held] += 2.0 * np.einsum("tp...,p...->t...", pr.v[held], step) + np.einsum("p...,tpr,r...->t...", step, red.U[held], step)
+    counts = np.diff(segments.track_starts).reshape((-1,) + (1,) * (e2.ndim - 1))
+    return np.sqrt(np.maximum(e2, 0.0) / np.maximum(counts, 1))
 
 
 def signed_rank_z(d):
@@ -157,16 +207,18 @@ def signed_rank_z(d):
     return float((w_plus - mean) / sd)
 
 
-def bootstrap_params(red, names, values, cfg, rng, draws=BOOTSTRAP):
+def bootstrap_params(red, segments, names, values, cfg, rng, draws=BOOTSTRAP):
     """One-step bootstrap over tracks: (draws, p) parameter values."""
-    tracks = red.M.shape[0]
-    out = np.zeros((draws, len(names)))
-    for d in range(draws):
-        counts = np.bincount(rng.integers(0, tracks, tracks), minlength=tracks).astype(float)
-        step = _solve(np.einsum("t,tij->ij", counts, red.M), counts @ red.b)
-        step = _clip_step(values, names, step, cfg)
-        out[d] = [values[n] for n in names] + step
-    return out
+    b = _project(red, segments).b
+    tracks, p = b.shape
+    counts = np.stack([np.bincount(rng.integers(0, tracks, tracks), minlength=tracks) for _ in range(draws)]).astype(float)
+    if p == 0:
+        return np.zeros((draws, 0))
+    M = np.einsum("dt,tij->dij", counts, red.M)
+    ridge = 1e-9 * np.maximum(np.einsum("dii->d", M) / p, 1e-30)
+    step = -np.linalg.solve(M + ridge[:, None, None] * np.eye(p), (counts @ b)[:, :, None])[:, :, 0]
+    step = _clip_step(values, names, step.T, cfg).T
+    return np.array([values[n] for n in names]) + step
 
 
 def _bootstrap_quantiles(values, statistic, rng, draws):
@@ -223,10 +275,18 @@ def _start_grid(effect_name, cfg):
 SCOUT_ITERATIONS = 6  # iterations each start gets before the best one is carried on
 
 
-def fit_candidate(cfg, current, effect_name, segments):
+def fit_candidate(cfg, current, effect_name, segments, previous=None):
     """``current`` plus one effect, fitted from each of the registry's starts for a few
-    iterations (warm states); the best start is then carried on to convergence."""
+    iterations (warm states); the best start is then carried on to convergence. ``previous``:
+    the candidate's fit in a round that was repeated; when its cost is below the current
+    model's it is a start at least as good as any, and the fit goes on from it alone; else its
+    own parameters are the one start, with the current model's."""
     spec = current.spec.with_effect(effect_name)
+    if previous is not None and previous.spec == spec:
+        if previous.cost < current.cost:
+            return shooting.fit_spec(cfg, spec, segments, start=previous.params, states=previous.states)
+        own = {p.name: previous.params[p.name] for p in registry.effect(effect_name).params}
+        return shooting.fit_spec(cfg, spec, segments, start={**current.params, **own}, states=current.states)
     starts = _start_grid(effect_name, cfg)
     best = None
     for start in starts:
@@ -373,29 +433,36 @@ def sidak_bound(comparisons):
     return NormalDist().inv_cdf((1.0 - LEVEL) ** (1.0 / max(comparisons, 1)))
 
 
+NULL_BATCH = 25  # simulations computed together (memory: rows x 3 x this many floats, a few times)
+
+
 def _null_threshold(cfg, current, lin_current, candidates_lin, segments, fold, sigmas, rng, simulations):
     """95 % quantile of the largest signed-rank statistic over the candidates in data simulated
-    from the current model (its linearisation) with the tracking noise, and the Sidak bound."""
+    from the current model (its linearisation) with the tracking noise, and the Sidak bound.
+    The simulated residual is the noise itself (the model is true in the simulation), so each
+    simulation is a few linear maps of it (:func:`_project`), a batch at a time."""
     sidak = sidak_bound(len(candidates_lin))
-    usable = [(name, lin, names) for name, lin, names in candidates_lin if lin is not None]
+    usable = [(lin, names) for name, lin, names in candidates_lin if lin is not None]
     if not usable or simulations <= 0:
         return sidak, sidak, 0
     rows = lin_current.residual.shape[0]
-    scale = np.array(sigmas)
-    best = np.zeros(simulations)
     unit = np.ones(rows)
-    for s in range(simulations):
-        noise = rng.normal(size=(rows, 3)) * scale
-        base = _reduce(lin_current, segments, residual=noise, weight=unit, centre=False)
-        e_base = cv_errors(base, segments, fold, list(current.free), current.params, cfg)
-        top = -np.inf
-        for _, lin, names in usable:
-            red = _reduce(lin, segments, residual=noise, weight=unit, centre=False)
-            values = dict(current.params)
-            values.update({n: registry.param(n).null_value(cfg) for n in names if n not in values})
-            e_cand = cv_errors(red, segments, fold, names, values, cfg)
-            top = max(top, signed_rank_z(e_base**2 - e_cand**2))
-        best[s] = top
+    base = _reduce(lin_current, segments, weight=unit)
+    reduced = []
+    for lin, names in usable:
+        values = dict(current.params)
+        values.update({n: registry.param(n).null_value(cfg) for n in names if n not in values})
+        reduced.append((_reduce(lin, segments, weight=unit), names, values))
+    best = []
+    for first in range(0, simulations, NULL_BATCH):
+        size = min(NULL_BATCH, simulations - first)
+        noise = rng.normal(size=(rows, 3, size)) * np.asarray(sigmas)[None, :, None]
+        e_base = cv_errors(base, segments, fold, list(current.free), current.params, cfg, _project(base, segments, noise, centre=False))
+        top = np.full(size, -np.inf)
+        for red, names, values in reduced:
+            e_cand = cv_errors(red, segments, fold, names, values, cfg, _project(red, segments, noise, centre=False))
+            top = np.maximum(top, [signed_rank_z(e_base[:, s] ** 2 - e_cand[:, s] ** 2) for s in range(size)])
+        best.extend(top)
     simulated = float(np.quantile(best, 1.0 - LEVEL))
     return max(simulated, sidak), sidak, simulations
 
@@ -426,6 +493,7 @@ def _confirm(cfg, fit, segments):
 
 
 MAX_RESTARTS = 2  # times a round may be repeated because the current model found a lower optimum
+BETTER_OPTIMUM = 1e-3  # relative fall of the current model's cost that counts as a lower optimum
 
 
 def _better_optimum(cfg, current, results, segments, restarts):
@@ -433,13 +501,14 @@ def _better_optimum(cfg, current, results, segments, restarts):
     at their null value reached a clearly lower cost; else None."""
     if restarts >= MAX_RESTARTS:
         return None
-    nulls = [r for r in results if not r["null_excluded"] and r["fit"].cost < current.cost * (1.0 - 1e-3)]
+    nulls = [r for r in results if not r["null_excluded"] and r["fit"].cost < current.cost * (1.0 - BETTER_OPTIMUM)]
     if not nulls:
         return None
     best = min(nulls, key=lambda r: r["fit"].cost)
     start = {k: v for k, v in best["fit"].params.items() if k in current.params}
     refit = shooting.fit_spec(cfg, current.spec, segments, start=start, states=best["fit"].states, max_iterations=POLISH_ITERATIONS)
-    return (refit, best["effect"]) if refit.cost < current.cost else None
+    # the refit must keep the fall: else it came from the candidate's own (non-null) parameter
+    return (refit, best["effect"]) if refit.cost < current.cost * (1.0 - BETTER_OPTIMUM) else None
 
 
 def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng):
@@ -447,7 +516,7 @@ def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng
     intervals, null and bounds."""
     cand_red = _reduce(shooting.linearise(cfg, cand, segments), segments)
     e_cand = cv_errors(cand_red, segments, fold, list(cand.free), cand.params, cfg)
-    draws = bootstrap_params(cand_red, list(cand.free), cand.params, cfg, rng, bootstrap)
+    draws = bootstrap_params(cand_red, segments, list(cand.free), cand.params, cfg, rng, bootstrap)
     params = _describe_params(cand, draws, cfg)
     excluded, new = True, []
     for name in names:
@@ -461,11 +530,22 @@ def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng
             "at_bound": [n for n in new if params[n]["at_bound"]], "converged": cand.converged, "iterations": cand.iterations}
 
 
+def _untried(pool, spec):
+    """Candidates of a round: those not in the model, and not indistinguishable from one in it
+    or from one earlier in the pool (the registry's ``equivalent``: the same fit twice)."""
+    tried = []
+    for name in pool:
+        have = set(spec.effects) | set(spec.declared) | set(tried)
+        if name not in have and not have & set(registry.effect(name).equivalent):
+            tried.append(name)
+    return tried
+
+
 def _try_candidate(task):
     """Fit one candidate and test it: (result dict, its null linearisation). Runs in a worker."""
-    (cfg, current, segments, fold, e_current, floor, bootstrap, seed), name = task
+    (cfg, current, segments, fold, e_current, floor, bootstrap, seed), name, previous = task
     rng = np.random.default_rng([seed, registry.names().index(name)])  # the same draws in any worker
-    cand = fit_candidate(cfg, current, name, segments)
+    cand = fit_candidate(cfg, current, name, segments, previous)
     result = _test_fit(cfg, cand, (name,), segments, fold, e_current, floor, bootstrap, rng)
     return result, (name, *_null_linearisation(cfg, current, name, segments))
 
@@ -548,12 +628,14 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     chain, rounds = [], []
     restarts = 0
     sigmas = (noise["sigma_x"], noise["sigma_y"], cfg.die.circumradius * noise["sigma_phi"])
+    previous = {}  # a repeated round's candidate fits, to go on from
     while len(chain) < max_chain:
-        tried = [e for e in pool if e not in current.spec.effects]
+        tried = _untried(pool, current.spec)
         if not tried:
             break
         job = (cfg, current, seg_select, fold, e_current, floor, bootstrap, seed)
-        outcomes = _map(_try_candidate, [(job, name) for name in tried], workers)
+        outcomes = _map(_try_candidate, [(job, name, previous.get(name)) for name in tried], workers)
+        previous = {}
         results = [r for r, _ in outcomes]
         null_lins = [n for _, n in outcomes]
         for r in results:
@@ -565,7 +647,9 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
             # a candidate whose own parameters stayed null found a lower cost for the others:
             # that is the current model's optimum, not the candidate's gain; take it and redo
             restarts += 1
-            say(f"  the current model has a lower optimum (found by {better[1]}): refitted, round repeated")
+            say(f"  the current model has a lower optimum (found by {better[1]}, cost {relative_fall(current.cost, better[0].cost):.2%} "
+                f"lower): refitted, round repeated")
+            previous = {r["effect"]: r["fit"] for r in results}
             current = better[0]
             lin = shooting.linearise(cfg, current, seg_select)
             red = _reduce(lin, seg_select)
@@ -618,8 +702,8 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     # before and after on tracks that took no part in choosing
     e_before, residual_before = _confirm(cfg, baseline, seg_confirm)
     e_after, residual_after = _confirm(cfg, current, seg_confirm)
-    draws_before = bootstrap_params(baseline_red, list(baseline.free), baseline.params, cfg, rng, bootstrap)
-    draws_after = bootstrap_params(red, list(current.free), current.params, cfg, rng, bootstrap)
+    draws_before = bootstrap_params(baseline_red, seg_select, list(baseline.free), baseline.params, cfg, rng, bootstrap)
+    draws_after = bootstrap_params(red, seg_select, list(current.free), current.params, cfg, rng, bootstrap)
     after_error = shooting.rms(e_after)
     median_before, median_before_ci = median_interval(e_before, rng, bootstrap)
     median_after, median_after_ci = median_interval(e_after, rng, bootstrap)

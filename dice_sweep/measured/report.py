@@ -82,7 +82,7 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
     spec = shooting.ModelSpec.of(cfg, extra)
     fit = shooting.fit_spec(cfg, spec, seg_select)
     red = loop._reduce(shooting.linearise(cfg, fit, seg_select), seg_select)
-    draws = loop.bootstrap_params(red, list(fit.free), fit.params, cfg, rng)
+    draws = loop.bootstrap_params(red, seg_select, list(fit.free), fit.params, cfg, rng)
     e_train = shooting.track_errors(seg_select, shooting.ShootingModel(cfg, spec, seg_select).residuals(fit.params, fit.states))
     e_test, residual_test = loop._confirm(cfg, fit, seg_confirm)
     result = {

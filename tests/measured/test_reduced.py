@@ -1,0 +1,111 @@
+"""The reduced (states eliminated) problem of diagnose against direct least squares.
+
+Cross-validation, the bootstrap and the null simulations use per-segment quadratic forms
+instead of per-row residuals; here they are checked against the plain computation: for each
+fold, one Gauss-Newton step of the whole linear problem (parameters and every kept segment's
+state) by ``numpy.linalg.lstsq``, then each held-out segment's state refitted by ``lstsq``.
+"""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dice_sweep.config import load_config
+from dice_sweep.measured import diagnose as loop
+from dice_sweep.measured import fit as shooting
+
+ROOT = Path(__file__).resolve().parents[2]
+NAMES = ["beta_normal", "beta_tangential"]
+VALUES = {"beta_normal": 0.5, "beta_tangential": 0.0}  # far from the bounds: no clipping
+
+
+class FakeSegments:
+    """The attributes of ``fit.Segments`` the reduced problem reads."""
+
+    def __init__(self, rng, tracks=12):
+        sizes, track = [], []
+        for t in range(tracks):
+            for _ in range(rng.integers(1, 4)):
+                sizes.append(int(rng.integers(8, 20)))
+                track.append(t)
+        self.tracks, self.count = tracks, len(sizes)
+        self.track = np.array(track)
+        self.starts = np.concatenate([[0], np.cumsum(sizes)])
+        self.segment_rows = np.repeat(np.arange(self.count), sizes)
+        self.track_rows = self.track[self.segment_rows]
+        self.track_starts = np.searchsorted(self.track_rows, np.arange(tracks + 1))
+        self.track_segment_starts = np.searchsorted(self.track, np.arange(tracks + 1))
+
+
+@pytest.fixture
+def problem():
+    rng = np.random.default_rng(3)
+    seg = FakeSegments(rng)
+    rows = seg.starts[-1]
+    lin = shooting.Linearisation(rng.normal(size=(rows, 3)) * 1e-3, rng.uniform(0.2, 1.0, rows),
+                                 rng.normal(size=(rows, 3, 2)), rng.normal(size=(rows, 3, 6)))
+    fold = np.arange(seg.tracks) % 4
+    return seg, lin, fold
+
+
+def _direct_cv(seg, lin, fold, residual):
+    """Held-out per-track RMS errors by direct weighted least squares."""
+    sw = np.sqrt(lin.weight)
+    errors = np.zeros(seg.tracks)
+    for k in np.unique(fold):
+        kept = np.flatnonzero(fold[seg.track] != k)
+        rows = np.flatnonzero(np.isin(seg.segment_rows, kept))
+        design = np.zeros((rows.size * 3, 2 + 6 * kept.size))
+        design[:, :2] = (lin.jac_params[rows] * sw[rows, None, None]).reshape(-1, 2)
+        column = {s: 2 + 6 * i for i, s in enumerate(kept)}
+        for i, r in enumerate(rows):
+            c = column[seg.segment_rows[r]]
+            design[3 * i:3 * i + 3, c:c + 6] = lin.jac_states[r] * sw[r]
+        target = -(residual[rows] * sw[rows, None]).reshape(-1)
+        step = np.linalg.lstsq(design, target, rcond=None)[0][:2]
+        for s in np.flatnonzero(fold[seg.track] == k):
+            r = np.arange(seg.starts[s], seg.starts[s + 1])
+            moved = residual[r] + lin.jac_params[r] @ step
+            ds = np.linalg.lstsq((lin.jac_states[r] * sw[r, None, None]).reshape(-1, 6), -(moved * sw[r, None]).reshape(-1), rcond=None)[0]
+            moved = moved + lin.jac_states[r] @ ds
+            errors[seg.track[s]] += np.sum(moved**2)
+    return np.sqrt(errors / np.diff(seg.track_starts))
+
+
+def test_cross_validation_equals_direct_least_squares(problem):
+    seg, lin, fold = problem
+    cfg = load_config(ROOT / "configs" / "square_drops.toml")
+    red = loop._reduce(lin, seg)
+    got = loop.cv_errors(red, seg, fold, NAMES, VALUES, cfg, loop._project(red, seg, centre=False))
+    want = _direct_cv(seg, lin, fold, lin.residual)
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+
+
+def test_a_batch_of_residuals_equals_one_at_a_time(problem):
+    seg, lin, fold = problem
+    cfg = load_config(ROOT / "configs" / "square_drops.toml")
+    unit = np.ones_like(lin.weight)
+    red = loop._reduce(lin, seg, weight=unit)
+    noise = np.random.default_rng(4).normal(size=lin.residual.shape + (5,)) * 1e-4
+    batch = loop.cv_errors(red, seg, fold, NAMES, VALUES, cfg, loop._project(red, seg, noise, centre=False))
+    for s in range(noise.shape[2]):
+        one = loop.cv_errors(red, seg, fold, NAMES, VALUES, cfg, loop._project(red, seg, noise[:, :, s], centre=False))
+        np.testing.assert_allclose(batch[:, s], one, rtol=1e-10)
+        unit_lin = shooting.Linearisation(lin.residual, unit, lin.jac_params, lin.jac_states)
+        np.testing.assert_allclose(one, _direct_cv(seg, unit_lin, fold, noise[:, :, s]), rtol=1e-6)
+
+
+def test_bootstrap_without_resampling_is_the_full_step(problem):
+    """With every track drawn once, a bootstrap draw is the one-step fit of all tracks: the
+    centred gradient makes it the point itself."""
+    seg, lin, fold = problem
+    cfg = load_config(ROOT / "configs" / "square_drops.toml")
+    red = loop._reduce(lin, seg)
+
+    class Once:
+        def integers(self, low, high, size):
+            return np.arange(size)
+
+    draws = loop.bootstrap_params(red, seg, NAMES, VALUES, cfg, Once(), draws=3)
+    np.testing.assert_allclose(draws, [[0.5, 0.0]] * 3, atol=1e-12)
