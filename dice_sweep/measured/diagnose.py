@@ -18,7 +18,10 @@ The steps (docs/measured.md states them for users):
    linearisation, with the estimated tracking noise), and never below the Sidak-corrected
    normal quantile; (b) the 95 % bootstrap interval (over tracks) of each of its parameters
    excludes the null value; (c) it removes at least ``MIN_EXCESS_SHARE`` of the error in excess
-   of the noise floor (a smaller gain is the effect soaking up some other misfit).
+   of the noise floor (a smaller gain is the effect soaking up some other misfit); (d) the
+   median per-track held-out error falls (the verdict's measure: a proxy for physics outside
+   the library can help the worst tracks a lot, pass the rank test, and make the typical track
+   worse, as a higher g did for drops with a Magnus force).
 5. Verdict: ``explained`` when the median over confirmation tracks of the per-track error is
    within ``EXPLAINED_FACTOR`` times the noise floor (the median, because a few tracks whose
    prediction crosses a near-flat landing diverge chaotically whatever the model; the RMS over
@@ -311,13 +314,25 @@ def _null_excluded(name, interval, cfg):
     return not (interval[0] <= null <= interval[1])
 
 
-def _describe_params(fit, draws, cfg):
+TOP_TRACK_SHARE = 0.5  # a parameter whose information comes this much from one track is flagged
+
+
+def _describe_params(fit, draws, cfg, red=None):
+    """Value, 95 % interval, unit, bound and null of each fitted parameter; with ``red``, the
+    share of its information (diagonal of the reduced normal matrix) from the most informative
+    track, flagged above TOP_TRACK_SHARE: one track then decides the value (seen when a
+    prediction passes near a discontinuity) and the interval is not to be trusted."""
     out = {}
     for k, name in enumerate(fit.free):
         entry = registry.param(name)
         interval = [float(np.quantile(draws[:, k], 0.025)), float(np.quantile(draws[:, k], 0.975))] if draws is not None else [math.nan, math.nan]
         out[name] = {"value": float(fit.params[name]), "ci95": interval, "unit": entry.unit, "at_bound": fit.at_bound.get(name, False),
                      "null": entry.null_value(cfg)}
+        if red is not None:
+            info = red.M[:, k, k]
+            share = float(info.max() / info.sum()) if info.sum() > 0 else math.nan
+            out[name]["top_track_share"] = share
+            out[name]["one_track_decides"] = bool(share > TOP_TRACK_SHARE)
     return out
 
 
@@ -433,6 +448,7 @@ def sidak_bound(comparisons):
     return NormalDist().inv_cdf((1.0 - LEVEL) ** (1.0 / max(comparisons, 1)))
 
 
+NULL_KIND = "gauss"
 NULL_BATCH = 25  # simulations computed together (memory: rows x 3 x this many floats, a few times)
 
 
@@ -446,17 +462,21 @@ def _null_threshold(cfg, current, lin_current, candidates_lin, segments, fold, s
     if not usable or simulations <= 0:
         return sidak, sidak, 0
     rows = lin_current.residual.shape[0]
-    unit = np.ones(rows)
-    base = _reduce(lin_current, segments, weight=unit)
+    weight = lin_current.weight if NULL_KIND == "signs" else np.ones(rows)
+    base = _reduce(lin_current, segments, weight=weight)
     reduced = []
     for lin, names in usable:
         values = dict(current.params)
         values.update({n: registry.param(n).null_value(cfg) for n in names if n not in values})
-        reduced.append((_reduce(lin, segments, weight=unit), names, values))
+        reduced.append((_reduce(lin, segments, weight=weight), names, values))
     best = []
     for first in range(0, simulations, NULL_BATCH):
         size = min(NULL_BATCH, simulations - first)
-        noise = rng.normal(size=(rows, 3, size)) * np.asarray(sigmas)[None, :, None]
+        if NULL_KIND == "signs":
+            signs = rng.choice([-1.0, 1.0], size=(segments.count, size))
+            noise = lin_current.residual[:, :, None] * signs[segments.segment_rows][:, None, :]
+        else:
+            noise = rng.normal(size=(rows, 3, size)) * np.asarray(sigmas)[None, :, None]
         e_base = cv_errors(base, segments, fold, list(current.free), current.params, cfg, _project(base, segments, noise, centre=False))
         top = np.full(size, -np.inf)
         for red, names, values in reduced:
@@ -493,7 +513,9 @@ def _confirm(cfg, fit, segments):
 
 
 MAX_RESTARTS = 2  # times a round may be repeated because the current model found a lower optimum
-BETTER_OPTIMUM = 1e-3  # relative fall of the current model's cost that counts as a lower optimum
+# relative fall of the current model's cost that counts as a lower optimum: a tenth of the
+# smallest share of the excess an effect must remove, so that a smaller fall cannot make one pass
+BETTER_OPTIMUM = 0.1 * MIN_EXCESS_SHARE
 
 
 def _better_optimum(cfg, current, results, segments, restarts):
@@ -517,7 +539,7 @@ def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng
     cand_red = _reduce(shooting.linearise(cfg, cand, segments), segments)
     e_cand = cv_errors(cand_red, segments, fold, list(cand.free), cand.params, cfg)
     draws = bootstrap_params(cand_red, segments, list(cand.free), cand.params, cfg, rng, bootstrap)
-    params = _describe_params(cand, draws, cfg)
+    params = _describe_params(cand, draws, cfg, cand_red)
     excluded, new = True, []
     for name in names:
         own = [p.name for p in registry.effect(name).params]
@@ -527,6 +549,7 @@ def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng
     return {"effect": "+".join(names), "effects": list(names), "fit": cand, "red": cand_red, "errors": e_cand,
             "z": signed_rank_z(e_current**2 - e_cand**2), "params": params, "null_excluded": bool(excluded),
             "excess_share": excess_share(e_current, e_cand, floor), "test_error": shooting.rms(e_cand),
+            "median_error": float(np.median(e_cand)), "median_falls": bool(np.median(e_cand) < np.median(e_current)),
             "at_bound": [n for n in new if params[n]["at_bound"]], "converged": cand.converged, "iterations": cand.iterations}
 
 
@@ -539,6 +562,12 @@ def _untried(pool, spec):
         if name not in have and not have & set(registry.effect(name).equivalent):
             tried.append(name)
     return tried
+
+
+def _passes(result):
+    """Whether a tested candidate is added (``significant`` set from the round's threshold)."""
+    return bool(result["significant"] and result["null_excluded"] and result["excess_share"] >= MIN_EXCESS_SHARE
+                and result["median_falls"] and not result["at_bound"])
 
 
 def _try_candidate(task):
@@ -660,7 +689,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         threshold, sidak, sims = _null_threshold(cfg, current, lin, null_lins, seg_select, fold, sigmas, rng, null_simulations)
         for r in results:
             r["significant"] = r["z"] > threshold
-            r["accepted"] = bool(r["significant"] and r["null_excluded"] and r["excess_share"] >= MIN_EXCESS_SHARE and not r["at_bound"])
+            r["accepted"] = _passes(r)
         results.sort(key=lambda r: -r["z"])
         rounds.append({"threshold_z": threshold, "sidak_z": sidak, "null_simulations": sims,
                        "candidates": [{k: v for k, v in r.items() if k not in ("fit", "red", "errors")} for r in results]})
@@ -673,8 +702,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
             pair_threshold = max(threshold, sidak_bound(len(results) + len(pairs)))
             for pair in tested:
                 pair["significant"] = pair["z"] > pair_threshold
-                pair["accepted"] = bool(pair["significant"] and pair["null_excluded"] and pair["excess_share"] >= MIN_EXCESS_SHARE
-                                       and not pair["at_bound"])
+                pair["accepted"] = _passes(pair)
                 say(f"  + {pair['effect']} together: held-out {pair['test_error'] * 1000:.3f} mm, z = {pair['z']:.2f}, "
                     f"share of excess {pair['excess_share']:.0%}, null excluded: {pair['null_excluded']}, added: {pair['accepted']}")
             rounds[-1]["pair_threshold_z"] = pair_threshold
@@ -729,11 +757,11 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         "noise": noise,
         "baseline": {"test_error": shooting.rms(e_before), "ci95": bootstrap_rms(e_before, rng, bootstrap),
                      "multiple_of_floor": shooting.rms(e_before) / floor, "median_error": median_before, "median_ci95": median_before_ci,
-                     "median_multiple_of_floor": median_before / floor, "params": _describe_params(baseline, draws_before, cfg),
+                     "median_multiple_of_floor": median_before / floor, "params": _describe_params(baseline, draws_before, cfg, baseline_red),
                      "effects": list(declared)},
         "after": {"test_error": after_error, "ci95": bootstrap_rms(e_after, rng, bootstrap), "multiple_of_floor": after_error / floor,
                   "median_error": median_after, "median_ci95": median_after_ci, "median_multiple_of_floor": median_after / floor,
-                  "params": _describe_params(current, draws_after, cfg), "effects": list(declared) + list(current.spec.effects)},
+                  "params": _describe_params(current, draws_after, cfg, red), "effects": list(declared) + list(current.spec.effects)},
         "chain": chain,
         "rounds": rounds,
         "metric": METRIC,
@@ -741,8 +769,8 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
                       f"tracks (one-step refits); an effect is added when the one-sided Wilcoxon signed-rank statistic of the per-track "
                       f"held-out squared errors beats the 95 % quantile of its largest value over all candidates in {null_simulations} "
                       f"simulations from the current model (never below the Sidak bound), every parameter's 95 % bootstrap interval "
-                      f"excludes its null value, no parameter ends at a bound, and it removes at least {MIN_EXCESS_SHARE:.0%} of the "
-                      f"error above the noise floor"),
+                      f"excludes its null value, no parameter ends at a bound, it removes at least {MIN_EXCESS_SHARE:.0%} of the "
+                      f"error above the noise floor, and the median per-track held-out error falls"),
         "data": {"path": trackset.path, "tracks": len(trackset.tracks), "rate_hz": trackset.rate,
                  "selection_tracks": len(select), "confirmation_tracks": len(confirm),
                  "selection_flights": seg_select.count, "confirmation_flights": seg_confirm.count,
@@ -754,6 +782,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     }
     params = {}
     for name, entry in report["after"]["params"].items():
-        params[name] = {"value": entry["value"], "ci95": entry["ci95"], "at_bound": entry["at_bound"], "unit": entry["unit"]}
+        params[name] = {"value": entry["value"], "ci95": entry["ci95"], "at_bound": entry["at_bound"], "unit": entry["unit"],
+                        "one_track_decides": entry["one_track_decides"], "top_track_share": entry["top_track_share"]}
     report["params"] = params
     return report

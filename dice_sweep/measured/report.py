@@ -89,7 +89,7 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
         "metric": loop.METRIC,
         "model": cfg.contact.model if "corner_impulse" not in extra else "rigid",
         "effects": list(declared) + list(extra),
-        "params": loop._describe_params(fit, draws, cfg),
+        "params": loop._describe_params(fit, draws, cfg, red),
         "train_error": shooting.rms(e_train),
         "test_error": shooting.rms(e_test),
         "ci95": loop.bootstrap_rms(e_test, rng),
@@ -210,11 +210,23 @@ def _interval(entry, scale=1000.0, unit="mm"):
 
 
 def _params_table(params):
-    lines = ["| parameter | value | 95 % interval | unit | at a bound |", "|---|---|---|---|---|"]
+    lines = ["| parameter | value | 95 % interval | unit | at a bound | largest one-track share of its information |",
+             "|---|---|---|---|---|---|"]
     for name, p in params.items():
         ci = p["ci95"]
         ci_text = "n/a" if ci[0] is None else f"[{ci[0]:.4g}, {ci[1]:.4g}]"
-        lines.append(f"| {name} | {p['value']:.4g} | {ci_text} | {p['unit']} | {'yes' if p['at_bound'] else 'no'} |")
+        share = p.get("top_track_share")
+        share_text = "-" if share is None else f"{share:.0%}" + (" (one track decides: interval not to be trusted)" if p.get("one_track_decides") else "")
+        lines.append(f"| {name} | {p['value']:.4g} | {ci_text} | {p['unit']} | {'yes' if p['at_bound'] else 'no'} | {share_text} |")
+    return lines
+
+
+def _round_table(label, results):
+    lines = [f"| {label} | held-out error | median held-out | z | share of excess | null excluded | at bound | added |",
+             "|---|---|---|---|---|---|---|---|"]
+    for c in results:
+        lines.append(f"| {c['effect']} | {_mm(c['test_error'])} | {_mm(c['median_error'])} | {c['z']:.2f} | {c['excess_share']:.0%} | "
+                     f"{'yes' if c['null_excluded'] else 'no'} | {', '.join(c['at_bound']) or '-'} | {'yes' if c['accepted'] else 'no'} |")
     return lines
 
 
@@ -246,17 +258,11 @@ def markdown_report(report):
     lines += ["", "## Parameters after", ""] + _params_table(report["after"]["params"])
     lines += ["", "## Rounds", ""]
     for k, rnd in enumerate(report["rounds"], 1):
-        lines += [f"Round {k}: threshold z = {rnd['threshold_z']:.2f} (Sidak bound {rnd['sidak_z']:.2f}, {rnd['null_simulations']} null simulations).", "",
-                  "| effect | held-out error | z | share of excess | null excluded | at bound | added |", "|---|---|---|---|---|---|---|"]
-        for c in rnd["candidates"]:
-            lines.append(f"| {c['effect']} | {_mm(c['test_error'])} | {c['z']:.2f} | {c['excess_share']:.0%} | "
-                         f"{'yes' if c['null_excluded'] else 'no'} | {', '.join(c['at_bound']) or '-'} | {'yes' if c['accepted'] else 'no'} |")
+        lines += [f"Round {k}: threshold z = {rnd['threshold_z']:.2f} (Sidak bound {rnd['sidak_z']:.2f}, {rnd['null_simulations']} null simulations).", ""]
+        lines += _round_table("effect", rnd["candidates"])
         if rnd.get("pairs"):
-            lines += ["", f"No single effect passed; pairs fitted together (threshold z = {rnd['pair_threshold_z']:.2f}):", "",
-                      "| effects | held-out error | z | share of excess | null excluded | at bound | added |", "|---|---|---|---|---|---|---|"]
-            for c in rnd["pairs"]:
-                lines.append(f"| {c['effect']} | {_mm(c['test_error'])} | {c['z']:.2f} | {c['excess_share']:.0%} | "
-                             f"{'yes' if c['null_excluded'] else 'no'} | {', '.join(c['at_bound']) or '-'} | {'yes' if c['accepted'] else 'no'} |")
+            lines += ["", f"No single effect passed; pairs fitted together (threshold z = {rnd['pair_threshold_z']:.2f}):", ""]
+            lines += _round_table("effects", rnd["pairs"])
         lines.append("")
     if report.get("by_bounce"):
         lines += ["## Error by impact (confirmation tracks, frames predicted through impact k)", "",
