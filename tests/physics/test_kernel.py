@@ -14,6 +14,7 @@ from dice_sweep.physics.kernel import (
     SEG_PIVOT,
     STATUS_BALANCED,
     STATUS_DECIDED,
+    STATUS_EVENT_BUDGET,
     side_below,
 )
 from dice_sweep.physics.params import inertia_ratio
@@ -216,3 +217,16 @@ def test_continued_roll_comes_to_rest_on_the_decided_side(model, rng):
     assert np.all(np.abs(final[:, 3:]) < 1e-3)
     sides = [side_below(phi, fpar, 4) for phi in final[:, 2]]
     assert sides == list(stopped)
+
+
+def test_fixed_step_budget_grows_with_t_max_over_dt():
+    """The paper's scheme applies at most one impact per step, and a settling die bounces on
+    nearly every step: the budget is at least t_max / dt, so a tight ``max_events`` does not end
+    fixed-step rolls that t_max allows (fig11 at dt = 1e-6 ran out in 8 of 1024 pixels)."""
+    state = [0.0, 0.15, 0.3, 0.4, 0.0, 0.0]
+    out, status, _, _, _, counts = run_one(make_params(sides=5, method="fixed_step", dt=1e-4, t_max=5.0, max_events=3), state)
+    assert status == STATUS_DECIDED and out >= 0
+    assert counts.sum() > 3  # more impacts than max_events were needed
+    # the event-driven scheme keeps max_events as it is
+    _, status, _, _, _, _ = run_one(make_params(sides=5, max_events=3), state)
+    assert status == STATUS_EVENT_BUDGET
