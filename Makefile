@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: venv demo test test-explore test-measured figures measured bench shards clean
+.PHONY: venv demo test test-explore test-measured test-fuzz figures measured bench shards clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -23,6 +23,9 @@ test-explore: $(STAMP)
 # the long cases of the measured-data loop on independent synthetic drops (minutes)
 test-measured: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests/measured
+
+test-fuzz: $(STAMP)
+	$(BIN)/python -m pytest -q -m slow tests/physics/test_stalls.py
 
 demo: $(STAMP)
 	mkdir -p out
