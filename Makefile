@@ -29,7 +29,7 @@ test-fuzz: $(STAMP)
 
 demo: $(STAMP)
 	mkdir -p out
-	$(BIN)/dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png
+	$(BIN)/dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --resume
 	@echo "demo: final-state diagram written to out/demo.png (data in out/demo.h5)"
 
 figures: $(STAMP)

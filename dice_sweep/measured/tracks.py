@@ -25,6 +25,7 @@ import gzip
 import hashlib
 import math
 import warnings
+import zlib
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -198,7 +199,7 @@ def _read_rows(path):
         with _open_text(path) as file:
             reader = csv.reader(file)
             numbered = [(reader.line_num, row) for row in reader if row and any(cell.strip() for cell in row)]
-    except (UnicodeDecodeError, gzip.BadGzipFile, EOFError, csv.Error) as error:
+    except (UnicodeDecodeError, gzip.BadGzipFile, EOFError, zlib.error, csv.Error) as error:
         raise DiceSweepError(f"{path}: file: not readable as CSV text ({error})") from None
     if not numbered:
         raise DiceSweepError(f"{path}: file: empty (allowed: a header line, e.g. traj,t,x,y,phi, and data rows)")

@@ -97,3 +97,26 @@ def test_unknown_effect_is_a_one_line_error(tmp_path):
     result = invoke("fit", data, "--config", config, "--effects", "magic")
     assert result.exit_code == 2
     assert "--effects: unknown effect 'magic'" in result.output and "Traceback" not in result.output
+
+
+@pytest.mark.parametrize("command", ["calibrate", "fit", "diagnose"])
+@pytest.mark.parametrize("damage", ["not gzip", "corrupt deflate", "cut short"])
+def test_a_damaged_gzip_file_is_a_one_line_error(files, tmp_path, command, damage):
+    """Caught: a deflate stream with bad data raised zlib.error through the CLI (a traceback)."""
+    import gzip
+
+    body = bytearray(gzip.compress(files[0].read_bytes()))
+    if damage == "not gzip":
+        body = bytearray(b"\x1f\x8bnot really gzip")
+    elif damage == "corrupt deflate":
+        body[100:200] = bytes(100)
+    else:
+        body = body[: len(body) // 2]
+    data = tmp_path / "drops.csv.gz"
+    data.write_bytes(bytes(body))
+    extra = [] if command == "calibrate" else ["--json", tmp_path / "out.json"]
+    result = invoke(command, data, "--config", files[1], *extra)
+    assert result.exit_code == 2, result.output
+    assert str(data) in result.output and "Traceback" not in result.output
+    assert len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "out.json").exists()
