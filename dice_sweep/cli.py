@@ -103,8 +103,10 @@ def roll(config, overrides, as_json, png_path, gif_path):
     """
     _fast_kernel_start()
     cfg = _load(config, overrides)
+    from dice_sweep.config import check_initial_clear
     from dice_sweep.roll import roll_config
 
+    check_initial_clear(cfg, overrides)
     report = roll_config(cfg)
     click.echo(json.dumps(report.to_dict()) if as_json else _describe_roll(report))
     if png_path:

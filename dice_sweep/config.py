@@ -589,6 +589,14 @@ def parse_config(text, source="<string>", overrides=()):
     return _build(raw, _Checker(source, overridden=bool(overrides)))
 
 
+def check_initial_clear(cfg, overrides=()):
+    """Refuse a config whose [initial] state has a corner inside a surface, for commands that
+    start from it alone (`roll`): with a [grid], loading checks the swept starts, and a value
+    the grid replaces may be anything (fig08 with initial.y0 = -1 rolled "side 3 after 0
+    impacts", exit 0)."""
+    _check_starts_clear(cfg.die, cfg.walls, cfg.initial, None, _Checker(cfg.source, bool(overrides)))
+
+
 def load_config(path, overrides=()):
     """Read, parse and validate a TOML config file.
 

@@ -323,3 +323,11 @@ def test_click_is_imported_only_by_the_cli():
     )
     assert importers == ["cli.py"]
     assert isinstance(cli.main, click.Group)
+
+
+def test_roll_refuses_an_initial_start_in_the_table_when_a_grid_sweeps_it():
+    """fig08 sweeps y0; `roll` starts from initial.y0, which -1 put 1 m into the table (it
+    printed "side 3 after 0 impacts", exit 0)."""
+    result = run("roll", CONFIG_DIR / "fig08.toml", "--set", "initial.y0=-1")
+    assert_user_error(result, "fig08.toml", "initial.y0", "into the table", "y0 >= ")
+    assert result.stdout == ""

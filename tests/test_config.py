@@ -16,6 +16,7 @@ from dice_sweep.config import (
     Grid,
     Initial,
     Walls,
+    check_initial_clear,
     config_to_toml,
     default_config,
     load_config,
@@ -272,6 +273,16 @@ def test_grid_start_check_uses_both_swept_axes():
     error = config_error(text)
     assert error.key == "grid.y"
     assert "y0 = 0.005 m" in error.message
+
+
+def test_initial_start_is_checked_for_roll_when_a_grid_sweeps_it():
+    """`roll` starts from [initial] even when a [grid] sweeps y0: fig08 with initial.y0 = -1
+    rolled "side 3 after 0 impacts" with exit 0. Loading accepts it (a sweep never uses it)."""
+    cfg = parse_config("[initial]\ny0 = 0.1\n" + GRID, "bad.toml", ["initial.y0=-1"])
+    with pytest.raises(ConfigError) as caught:
+        check_initial_clear(cfg, ["initial.y0=-1"])
+    assert caught.value.key == "initial.y0"
+    assert "into the table" in str(caught.value) and "bad.toml with --set" in str(caught.value)
 
 
 # ---- --set overrides -----------------------------------------------------------------------
