@@ -504,6 +504,13 @@ def _null_linearisation(cfg, current, effect_name, segments):
     return shooting.linearise(cfg, at_null, segments), list(spec.param_names())
 
 
+def _held_out(cfg, fit, segments, fold):
+    """A fit's linearisation, its reduced pieces and its per-track held-out errors."""
+    lin = shooting.linearise(cfg, fit, segments)
+    red = _reduce(lin, segments)
+    return lin, red, cv_errors(red, segments, fold, list(fit.free), fit.params, cfg)
+
+
 def _confirm(cfg, fit, segments):
     """Per-track errors on confirmation tracks (states fitted, parameters held) and the
     residual rows (m) they come from."""
@@ -536,8 +543,7 @@ def _better_optimum(cfg, current, results, segments, restarts):
 def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng):
     """The tests of a fitted candidate (one effect or a pair): held-out errors, statistic,
     intervals, null and bounds."""
-    cand_red = _reduce(shooting.linearise(cfg, cand, segments), segments)
-    e_cand = cv_errors(cand_red, segments, fold, list(cand.free), cand.params, cfg)
+    _, cand_red, e_cand = _held_out(cfg, cand, segments, fold)
     draws = bootstrap_params(cand_red, segments, list(cand.free), cand.params, cfg, rng, bootstrap)
     params = _describe_params(cand, draws, cfg, cand_red)
     excluded, new = True, []
@@ -649,9 +655,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         f"noise floor {floor * 1000:.3f} mm; candidates: {', '.join(pool)}")
 
     current = shooting.fit_spec(cfg, shooting.ModelSpec.of(cfg), seg_select, max_iterations=POLISH_ITERATIONS)
-    lin = shooting.linearise(cfg, current, seg_select)
-    red = _reduce(lin, seg_select)
-    e_current = cv_errors(red, seg_select, fold, list(current.free), current.params, cfg)
+    lin, red, e_current = _held_out(cfg, current, seg_select, fold)
     baseline, baseline_red = current, red
     say(f"baseline: held-out {shooting.rms(e_current) * 1000:.3f} mm, {current.params}")
     chain, rounds = [], []
@@ -680,9 +684,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
                 f"lower): refitted, round repeated")
             previous = {r["effect"]: r["fit"] for r in results}
             current = better[0]
-            lin = shooting.linearise(cfg, current, seg_select)
-            red = _reduce(lin, seg_select)
-            e_current = cv_errors(red, seg_select, fold, list(current.free), current.params, cfg)
+            lin, red, e_current = _held_out(cfg, current, seg_select, fold)
             if not chain:
                 baseline, baseline_red = current, red
             continue
@@ -722,9 +724,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
             # model and not credited with what more iterations give any model
             current = shooting.fit_spec(cfg, current.spec, seg_select, start=current.params, states=current.states,
                                         max_iterations=POLISH_ITERATIONS)
-        lin = shooting.linearise(cfg, current, seg_select)
-        red = _reduce(lin, seg_select)
-        e_current = cv_errors(red, seg_select, fold, list(current.free), current.params, cfg)
+        lin, red, e_current = _held_out(cfg, current, seg_select, fold)
         say(f"added {best['effect']}: held-out {shooting.rms(e_current) * 1000:.3f} mm")
 
     # before and after on tracks that took no part in choosing
@@ -741,8 +741,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         verdict = "improved"
     else:
         verdict = "unexplained"
-    model = shooting.ShootingModel(cfg, current.spec, seg_select)
-    signatures = residual_signatures(select, seg_select, model.residuals(current.params, current.states), cfg.die.circumradius)
+    signatures = residual_signatures(select, seg_select, lin.residual, cfg.die.circumradius)  # lin is the current model's
     report = {
         "verdict": verdict,
         "verdict_rule": (f"explained: median per-track error on confirmation tracks <= {EXPLAINED_FACTOR} x noise_floor; improved: "

@@ -218,9 +218,14 @@ def _robust_weights(residual, scale):
     return 1.0 / np.sqrt(1.0 + e2 / scale**2)
 
 
-def _robust_cost(residual, scale):
+def _robust_loss(residual, scale):
+    """Soft-L1 loss rho per row (see :func:`_robust_weights`)."""
     e2 = np.einsum("ij,ij->i", residual, residual)
-    return float(np.sum(2.0 * scale**2 * (np.sqrt(1.0 + e2 / scale**2) - 1.0)))
+    return 2.0 * scale**2 * (np.sqrt(1.0 + e2 / scale**2) - 1.0)
+
+
+def _robust_cost(residual, scale):
+    return float(np.sum(_robust_loss(residual, scale)))
 
 
 def _segment_sums(values, starts):
@@ -395,9 +400,7 @@ FRESH_PASSES = 2  # times the states are refitted from their ballistic guesses a
 
 def _segment_costs(model, values, states):
     residual = model.residuals(values, states)
-    scale = ROBUST_SCALE * model.radius
-    e2 = np.einsum("ij,ij->i", residual, residual)
-    return _segment_sums(2.0 * scale**2 * (np.sqrt(1.0 + e2 / scale**2) - 1.0), model.seg.starts)
+    return _segment_sums(_robust_loss(residual, ROBUST_SCALE * model.radius), model.seg.starts)
 
 
 def _fresh_states(model, values, states):

@@ -81,9 +81,10 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
     extra = tuple(e for e in effects if e not in declared)
     spec = shooting.ModelSpec.of(cfg, extra)
     fit = shooting.fit_spec(cfg, spec, seg_select)
-    red = loop._reduce(shooting.linearise(cfg, fit, seg_select), seg_select)
+    lin = shooting.linearise(cfg, fit, seg_select)
+    red = loop._reduce(lin, seg_select)
     draws = loop.bootstrap_params(red, seg_select, list(fit.free), fit.params, cfg, rng)
-    e_train = shooting.track_errors(seg_select, shooting.ShootingModel(cfg, spec, seg_select).residuals(fit.params, fit.states))
+    e_train = shooting.track_errors(seg_select, lin.residual)
     e_test, residual_test = loop._confirm(cfg, fit, seg_confirm)
     result = {
         "metric": loop.METRIC,
