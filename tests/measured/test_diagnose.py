@@ -151,7 +151,7 @@ def test_four_times_the_noise(four_times_the_noise):
 
 @pytest.mark.slow
 @pytest.mark.xfail(reason="known bias at 4x the noise: drag 0.774 [0.730, 0.799] for 0.8 and friction 0.295 for 0.3 on this set, "
-                          "about one interval half-width low; without noise the fit finds both exactly (test_fit.py), and the "
+                          "less than one interval half-width low; without noise the fit finds both exactly (test_fit.py), and the "
                           "estimate moves with the robust scale (0.757 at 0.2 R, 0.781 at 0.01 R): a bias of the nonlinear fit "
                           "at this noise, not of the model")
 def test_four_times_the_noise_interval_covers_the_drag(four_times_the_noise):
