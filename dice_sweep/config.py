@@ -7,7 +7,8 @@ beta_tangential = -0.35, beta_normal = 0.2, dt = 0.001 s, R = 1.9/sqrt(2) cm):
 
     [die]        # sides = 4, circumradius = 0.013435 (m)
     [contact]    # model = "paper" | "rigid", beta_normal = 0.2, beta_tangential = -0.35,
-                 # friction = inf (Coulomb coefficient)
+                 # friction = inf (Coulomb coefficient), window = 1e-6 (s): contacts
+                 # arriving within it are one impact (a flat landing)
     [walls]      # separation = 0.20 (m); no [walls] section: no walls
     [initial]    # x0 = 0, y0 = 0.1 (m), phi0 = 0 (rad), vx0 = vy0 = 0 (m/s), omega0 = 10 (rad/s)
     [effects]    # air_drag = 0 (1/m), com_offset = [0, 0] (m), speed_restitution = 0 (s/m); all off
@@ -68,6 +69,10 @@ MAX_SIDES = 1000
 MAX_GRID_NUM = 100_000  # cells per axis; keeps the start check's arrays (and sweeps) finite
 # a start whose corner reaches this far into a surface still counts as touching it, not inside
 TOUCH_TOLERANCE = 1e-12  # relative to the circumradius
+# Contact window (s): a real die's contact lasts about 1e-4 s (docs/physics.md), and a window
+# beyond 1e-3 s would merge bounces of a rocking die that are separate events
+MAX_CONTACT_WINDOW = 1e-3
+DEFAULT_CONTACT_WINDOW = 1e-6  # s; docs/physics.md, "Two contacts at once", says why
 
 
 @dataclass(frozen=True)
@@ -81,12 +86,14 @@ class Die:
 @dataclass(frozen=True)
 class Contact:
     """Contact law: ``model`` ("paper" or "rigid"), ``beta_normal`` in [0, 1],
-    ``beta_tangential`` in [-1, 1], Coulomb ``friction`` coefficient in [0, inf] (inf: no cap)."""
+    ``beta_tangential`` in [-1, 1], Coulomb ``friction`` coefficient in [0, inf] (inf: no cap),
+    ``window`` (s) in [0, 1e-3]: contacts arriving within it are one impact."""
 
     model: str
     beta_normal: float
     beta_tangential: float
     friction: float
+    window: float = DEFAULT_CONTACT_WINDOW
 
 
 @dataclass(frozen=True)
@@ -242,6 +249,7 @@ _SECTION_SPECS = {
         "beta_normal": _Spec(float, 0.2, low=0.0, high=1.0),
         "beta_tangential": _Spec(float, -0.35, low=-1.0, high=1.0),
         "friction": _Spec(float, math.inf, low=0.0, allow_inf=True),
+        "window": _Spec(float, DEFAULT_CONTACT_WINDOW, low=0.0, high=MAX_CONTACT_WINDOW, unit="s"),
     },
     "walls": {"separation": _positive(0.20, "m")},
     "initial": {

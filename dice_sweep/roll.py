@@ -32,7 +32,8 @@ class RollReport:
         Simulated time (s) at which the simulation stopped.
     counts : dict
         Event tallies: impacts, wall_impacts, corner_fallbacks (the paper's law undefined,
-        impulse at the corner used), pivots (sustained-contact phases), energy_clips.
+        impulse at the corner used), pivots (sustained-contact phases), energy_clips,
+        multi_contacts (impacts of two contacts at once).
     records : numpy.ndarray
         Segment records (see dice_sweep.physics.kernel), to re-create the path.
     """

@@ -26,6 +26,7 @@ from dice_sweep.physics.flight import (
     surface_frame,
 )
 from dice_sweep.physics.impact import (
+    corner_normal_velocity,
     corner_vector,
     resolve_impact,
     specific_energy,
@@ -43,12 +44,14 @@ from dice_sweep.physics.params import (
     FP_RHO_MAX,
     FP_TMAX,
     FP_WALL,
+    FP_WINDOW,
     IP_CONTINUE,
     IP_MAX_EVENTS,
     IP_METHOD,
     IP_N,
     METHOD_FIXED_STEP,
 )
+from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
 from dice_sweep.physics.outcome import DECISION_MARGIN, decided_side, decision_bound, rest_height, side_below  # noqa: F401
 from dice_sweep.physics.pivot import (
     PIVOT_BALANCED,
@@ -72,12 +75,13 @@ STATUS_BALANCED = 3
 STATUS_STALLED = 4
 STATUS_NAMES = ("decided", "t_max", "event_budget", "balanced", "stalled")
 
-COUNT_COLUMNS = ("impacts", "wall_impacts", "corner_fallbacks", "pivots", "energy_clips")
+COUNT_COLUMNS = ("impacts", "wall_impacts", "corner_fallbacks", "pivots", "energy_clips", "multi_contacts")
 C_IMPACTS = 0
 C_WALL = 1
 C_FALLBACK = 2
 C_PIVOTS = 3
 C_CLIPS = 4
+C_MULTI = 5  # impacts of two contacts at once
 
 # Segment records: one row per stretch of motion, enough to re-create the path at any time.
 SEG_FLIGHT = 0
@@ -171,6 +175,32 @@ def _impact(s, fpar, ipar, surf, corner, counts):
     if surf != SURF_TABLE:
         counts[C_WALL] += 1
     return u_n
+
+
+@numba.njit(inline="always")  # as a call (four array arguments) it cost 8 % of fig08's rolls
+def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts):
+    """Resolve the impact of ``corner`` on ``surf`` together with a second contact arriving
+    within the contact window, if any (physics/multi_contact.py).
+
+    Returns the normal velocity after (m/s), surface and corner of the contact that decides
+    what follows: of two, the table contact left slowest (a pivot candidate), else the first.
+    """
+    surf_b, corner_b = second_contact(s, fpar, ipar[IP_N], n_surf, surf, corner, fpar[FP_WINDOW], tol, contact_speed)
+    if corner_b < 0 or not resolve_two_contacts(s, fpar, ipar, surf, corner, surf_b, corner_b, counts):
+        return _impact(s, fpar, ipar, surf, corner, counts), surf, corner
+    counts[C_IMPACTS] += 1
+    counts[C_MULTI] += 1
+    if surf != SURF_TABLE or surf_b != SURF_TABLE:
+        counts[C_WALL] += 1
+    nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
+    rx, ry = corner_vector(s, fpar, corner)
+    u_n = corner_normal_velocity(s, rx, ry, nx, ny)
+    if surf_b == SURF_TABLE:
+        rx, ry = corner_vector(s, fpar, corner_b)
+        u_b = s[4] + s[5] * rx
+        if surf != SURF_TABLE or u_b < u_n:
+            return u_b, surf_b, corner_b
+    return u_n, surf, corner
 
 
 # A plain call, not inline="always": inlined into _flat_side as numba IR it made the outcome
@@ -361,7 +391,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         chatter = chatter + 1 if same_corner else 0
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
-        u_n = _impact(s, fpar, ipar, surf, corner, counts)
+        u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts)
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
             # Lying flat on a side, both corners down: the die slides (finite friction) or
@@ -600,7 +630,7 @@ def sample_batch(fpar, ipar, states, times, starts, out, out_outcome):
     samples short pieces of track, and what follows the last sample is never read.
     """
     rec = np.empty((4096, REC_WIDTH))
-    counts = np.zeros(5, dtype=np.int32)
+    counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
     s, after, roll_pivot_out, hit = np.empty(6), np.empty(6), np.empty(5), np.empty(2, dtype=np.int64)
     own = fpar.copy()  # per-roll t_max without touching the caller's array
     for i in range(states.shape[0]):

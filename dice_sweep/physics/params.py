@@ -14,6 +14,8 @@ import math
 
 import numpy as np
 
+from dice_sweep.config import DEFAULT_CONTACT_WINDOW
+
 # fpar indices (SI units)
 FP_R = 0  # circumradius, m
 FP_G = 1  # gravitational acceleration, m/s^2
@@ -30,6 +32,7 @@ FP_COM_X = 11  # centre-of-mass offset from the geometric centre, body frame, m
 FP_COM_Y = 12
 FP_INERTIA = 13  # I_com / M, m^2
 FP_RHO_MAX = 14  # largest distance from the COM to a corner, m
+FP_WINDOW = 15  # contact window: contacts arriving within it are one impact, s
 FP_CORNERS = 16  # then (rho_k, cos gamma_k, sin gamma_k) for k = 0..n-1
 CORNER_STRIDE = 3
 
@@ -83,6 +86,7 @@ def pack_params(cfg):
     fpar[FP_INERTIA] = inertia
     fpar[FP_ALPHA] = inertia / (radius * radius)
     fpar[FP_MU] = getattr(cfg.contact, "friction", math.inf)
+    fpar[FP_WINDOW] = getattr(cfg.contact, "window", DEFAULT_CONTACT_WINDOW)
     fpar[FP_DRAG] = drag
     fpar[FP_KSR] = k_speed
     fpar[FP_COM_X] = dx

@@ -1,0 +1,379 @@
+"""One impact with two contacts: a side landing flat, a side hitting a wall flat, or a corner on
+the table and another on a wall at once (docs/physics.md, "Two contacts at once").
+
+Contacts whose arrival times lie within the contact window ``[contact] window`` (s) of the
+first are one impact. Resolving them one after the other (two single-corner impulses at one
+instant) breaks the mirror symmetry of a flat landing and makes the outcome jump with a tilt
+of 1e-9 rad (issue 15).
+
+Rigid law. Each contact i has Newton restitution on its corner's normal velocity,
+u_n' = -beta_normal u_n, unless it separates with no impulse (u_n' >= -beta_normal u_n). The
+tangential target is u_t' = -beta_tangential u_t, with a Coulomb cap. Two corners on one
+surface share one tangential impulse at the midpoint of the side, capped by friction times
+their summed normal impulses. Both corners sit at the same distance from the surface, so the
+split of a tangential impulse between them moves neither the die nor its spin; asking each
+corner for its own target makes the problem singular (four conditions, three velocities).
+Corners on two surfaces each have their own tangential impulse and cone.
+
+With at most two contacts the cases can be enumerated: each normal on or off; each tangential
+impulse on its target, or on either edge of its cone. Every case is a small linear system.
+A case is admissible when its normal impulses push, its targets lie in their cones, an edge
+impulse falls short of its target, and a contact without impulse does not approach faster than
+restitution allows. Of the admissible cases the one that leaves the least kinetic energy is
+taken (maximal dissipation). With one contact this is the single-corner law of impact.py. The
+frictionless case always has a solution (its matrix is positive definite) and never gains
+energy. When the chosen impulse would gain energy it is moved towards the frictionless one, as
+far as needed (an energy clip, as for one contact).
+
+Paper law. Eqs 9-13 depend only on the surface, not on the corner, so two corners on one
+surface get one application of the law. It stands when the centre approaches the surface
+and neither corner is left approaching; otherwise, and for contacts on two surfaces, the rigid
+two-contact impulse with the same coefficients is used (a fallback, as for one contact).
+"""
+
+import math
+
+import numba
+import numpy as np
+
+from dice_sweep.physics.flight import corner_offset, surface_frame
+from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, corner_normal_velocity, paper_law
+from dice_sweep.physics.params import FP_ALPHA, FP_BN, FP_BT, FP_INERTIA, FP_KSR, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_MODEL, MODEL_PAPER
+
+MAX_ROWS = 4  # two normal rows and at most two tangential rows
+# Relative slack of the admissibility tests: round-off of the 4 x 4 solves, not physics.
+ADMISSIBLE_SLACK = 1e-12
+# A pivot below this share of the matrix's largest entry: the case's conditions are dependent
+# (e.g. both corners of a side sticking on a wall and on the table at once) and it is skipped.
+SINGULAR_PIVOT = 1e-12
+
+
+@numba.njit(cache=True)
+def second_contact(s, fpar, n, n_surf, surf0, corner0, window, tol, contact_speed):
+    """The contact, other than (surf0, corner0), that arrives first within ``window`` seconds.
+
+    A corner joins when it approaches its surface faster than ``contact_speed`` (m/s) and its
+    gap would close, at its present normal speed, within ``window`` (or is within ``tol``,
+    m). Returns (surface, corner), (-1, -1) when none does.
+    """
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    speed = math.sqrt(s[3] * s[3] + s[4] * s[4]) + abs(s[5]) * fpar[FP_RHO_MAX]
+    best_time = math.inf
+    best_surf = -1
+    best_corner = -1
+    for surf in range(n_surf):
+        nx, ny, d = surface_frame(surf, fpar[FP_WALL])
+        h = d + nx * s[0] + ny * s[1]
+        if h - fpar[FP_RHO_MAX] > tol + speed * window:
+            continue  # no corner can be that close
+        for k in range(n):
+            if surf == surf0 and k == corner0:
+                continue
+            rx, ry = corner_offset(fpar, k, c, sn)
+            u = corner_normal_velocity(s, rx, ry, nx, ny)
+            if u >= -contact_speed:
+                continue
+            gap = h + nx * rx + ny * ry
+            if gap > tol - u * window:
+                continue
+            arrival = max(gap, 0.0) / (-u)
+            if arrival < best_time:
+                best_time = arrival
+                best_surf = surf
+                best_corner = k
+    return best_surf, best_corner
+
+
+@numba.njit(cache=True)
+def _row(jac, i, nx, ny, rx, ry, tangential):
+    """Row i of the contact Jacobian: the velocity (n or t component) of the point (rx, ry)
+    from the centre of mass is jac[i] . (vx, vy, omega)."""
+    ex = ny if tangential else nx
+    ey = -nx if tangential else ny
+    jac[i, 0] = ex
+    jac[i, 1] = ey
+    jac[i, 2] = -ry * ex + rx * ey  # r_perp . e, r_perp = z x r
+
+
+@numba.njit(cache=True)
+def _solve_in_place(a, b, m):
+    """Gaussian elimination with partial pivoting on the leading m x m block; b gets x.
+    Returns False when a pivot is negligible (dependent conditions)."""
+    scale = 0.0
+    for i in range(m):
+        for j in range(m):
+            scale = max(scale, abs(a[i, j]))
+    if scale == 0.0:
+        return False
+    for col in range(m):
+        piv = col
+        for i in range(col + 1, m):
+            if abs(a[i, col]) > abs(a[piv, col]):
+                piv = i
+        if abs(a[piv, col]) <= SINGULAR_PIVOT * scale:
+            return False
+        if piv != col:
+            for j in range(m):
+                a[col, j], a[piv, j] = a[piv, j], a[col, j]
+            b[col], b[piv] = b[piv], b[col]
+        for i in range(col + 1, m):
+            f = a[i, col] / a[col, col]
+            for j in range(col, m):
+                a[i, j] -= f * a[col, j]
+            b[i] -= f * b[col]
+    for i in range(m - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, m):
+            acc -= a[i, j] * b[j]
+        b[i] = acc / a[i, i]
+    return True
+
+
+@numba.njit(cache=True)
+def _energy_change(s, inertia, dv):
+    """Kinetic energy change per unit mass (J/kg) of the velocity change dv = (dvx, dvy, domega)."""
+    return s[3] * dv[0] + s[4] * dv[1] + inertia * s[5] * dv[2] + 0.5 * (dv[0] * dv[0] + dv[1] * dv[1] + inertia * dv[2] * dv[2])
+
+
+@numba.njit(cache=True)
+def _velocity(jac, r, s, dv):
+    """Velocity (m/s) along row r of the Jacobian after the velocity change dv."""
+    return jac[r, 0] * (s[3] + dv[0]) + jac[r, 1] * (s[4] + dv[1]) + jac[r, 2] * (s[5] + dv[2])
+
+
+@numba.njit(cache=True)
+def _tangential_rows(jac, owner, contacts, normal_mask, same_surface):
+    """Fill the tangential rows (from row 2 on) for the pressing corners; returns the row count.
+
+    One surface: one row at the midpoint of the pressing corners, owned by both (-1). Two
+    surfaces: one row per pressing corner, owned by it.
+    """
+    rows = 2
+    if same_surface:
+        rx = 0.0
+        ry = 0.0
+        count = 0
+        for i in range(2):
+            if normal_mask & (1 << i):
+                rx += contacts[i, 2]
+                ry += contacts[i, 3]
+                count += 1
+        _row(jac, 2, contacts[0, 0], contacts[0, 1], rx / count, ry / count, True)
+        owner[2] = -1
+        return 3
+    for i in range(2):
+        if normal_mask & (1 << i):
+            _row(jac, rows, contacts[i, 0], contacts[i, 1], contacts[i, 2], contacts[i, 3], True)
+            owner[rows] = i
+            rows += 1
+    return rows
+
+
+@numba.njit(cache=True)
+def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, best_dv):
+    """Enumerate the cases of a two-contact impact (module docstring).
+
+    Parameters
+    ----------
+    s : float64[6]
+        State of the centre of mass before the impact (only the velocities are read).
+    inertia : float
+        I / M about the centre of mass (m^2).
+    mu, beta_t : float
+        Coulomb friction coefficient (inf: no cap) and tangential restitution.
+    contacts : float64[2, 5]
+        Per contact: nx, ny (surface normal), rx, ry (corner from the centre of mass, m) and
+        the normal target velocity -beta_n u_n (m/s).
+    same_surface : bool
+        Both corners on one surface (they share a tangential impulse).
+    frictionless : bool
+        No tangential impulse (the reference of the energy clip).
+    best_dv : float64[3]
+        Output: (dvx, dvy, domega) of the chosen case.
+
+    Returns
+    -------
+    float
+        The chosen case's kinetic energy change per unit mass (J/kg); inf when no case is
+        admissible.
+    """
+    jac = np.empty((MAX_ROWS, 3))
+    owner = np.empty(MAX_ROWS, np.int64)
+    mode = np.empty(MAX_ROWS, np.int64)  # tangential rows: 0 on target, 1 +edge, 2 -edge
+    var = np.empty(MAX_ROWS, np.int64)  # row -> its unknown, -1 for none
+    coef = np.empty((MAX_ROWS, MAX_ROWS))  # impulse of row r = sum_v coef[r, v] x[v]
+    target = np.empty(MAX_ROWS)
+    a = np.empty((MAX_ROWS, MAX_ROWS))
+    x = np.empty(MAX_ROWS)
+    impulse = np.empty(MAX_ROWS)
+    dv = np.zeros(3)
+    zero = np.zeros(3)
+    u_scale = 0.0
+    for i in range(2):
+        _row(jac, i, contacts[i, 0], contacts[i, 1], contacts[i, 2], contacts[i, 3], False)
+        target[i] = contacts[i, 4]
+        u_scale = max(u_scale, abs(_velocity(jac, i, s, zero)))
+    slack = ADMISSIBLE_SLACK * u_scale
+    # tangential cases: on target, on the + edge, on the - edge; only the target without a cap,
+    # only a zero impulse (the "+ edge" of a zero cone) without friction
+    first_mode = 1 if mu == 0.0 else 0
+    last_mode = 0 if math.isinf(mu) else (1 if mu == 0.0 else 2)
+    best_energy = math.inf
+    for normal_mask in range(1, 4):
+        rows = 2 if frictionless else _tangential_rows(jac, owner, contacts, normal_mask, same_surface)
+        for r in range(2, rows):
+            target[r] = -beta_t * _velocity(jac, r, s, zero)
+        n_modes = last_mode - first_mode + 1
+        n_cases = n_modes ** (rows - 2)
+        for case in range(n_cases):
+            code = case
+            for r in range(2, rows):
+                mode[r] = first_mode + code % n_modes
+                code //= n_modes
+            m = 0
+            for r in range(rows):
+                var[r] = -1
+                if (r < 2 and normal_mask & (1 << r)) or (r >= 2 and mode[r] == 0):
+                    var[r] = m
+                    m += 1
+            for r in range(rows):
+                for v in range(m):
+                    coef[r, v] = 0.0
+                if var[r] >= 0:
+                    coef[r, var[r]] = 1.0
+                elif r >= 2:  # on an edge: +-mu times the normal impulses it belongs to
+                    sign = 1.0 if mode[r] == 1 else -1.0
+                    for i in range(2):
+                        if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
+                            coef[r, var[i]] = sign * mu
+            # one equation per unknown: that row's velocity reaches its target
+            eq = 0
+            for r in range(rows):
+                if var[r] < 0:
+                    continue
+                for v in range(m):
+                    acc = 0.0
+                    for q in range(rows):
+                        if coef[q, v] != 0.0:
+                            k_rq = jac[r, 0] * jac[q, 0] + jac[r, 1] * jac[q, 1] + jac[r, 2] * jac[q, 2] / inertia
+                            acc += k_rq * coef[q, v]
+                    a[eq, v] = acc
+                x[eq] = target[r] - _velocity(jac, r, s, zero)
+                eq += 1
+            if not _solve_in_place(a, x, m):
+                continue
+            dv[0] = 0.0
+            dv[1] = 0.0
+            dv[2] = 0.0
+            for r in range(rows):
+                acc = 0.0
+                for v in range(m):
+                    acc += coef[r, v] * x[v]
+                impulse[r] = acc
+                dv[0] += acc * jac[r, 0]
+                dv[1] += acc * jac[r, 1]
+                dv[2] += acc * jac[r, 2] / inertia
+            ok = True
+            for i in range(2):
+                if var[i] >= 0:
+                    ok = ok and impulse[i] >= -slack  # pushes
+                else:
+                    ok = ok and _velocity(jac, i, s, dv) >= target[i] - slack  # leaves on its own
+            for r in range(2, rows):
+                if mode[r] == 0:
+                    pressing = 0.0
+                    for i in range(2):
+                        if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
+                            pressing += impulse[i]
+                    ok = ok and (math.isinf(mu) or abs(impulse[r]) <= mu * pressing + slack)
+                elif mode[r] == 1:  # the + edge falls short of the target
+                    ok = ok and _velocity(jac, r, s, dv) <= target[r] + slack
+                else:
+                    ok = ok and _velocity(jac, r, s, dv) >= target[r] - slack
+            if not ok:
+                continue
+            energy = _energy_change(s, inertia, dv)
+            if energy < best_energy:
+                best_energy = energy
+                best_dv[0] = dv[0]
+                best_dv[1] = dv[1]
+                best_dv[2] = dv[2]
+    return best_energy
+
+
+@numba.njit(cache=True)
+def _fill_contact(contacts, i, s, fpar, surf, corner, c, sn):
+    """Row i of ``contacts`` for ``corner`` on ``surf``; returns its normal velocity (m/s)."""
+    nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
+    rx, ry = corner_offset(fpar, corner, c, sn)
+    u_n = corner_normal_velocity(s, rx, ry, nx, ny)
+    beta_n = fpar[FP_BN] / (1.0 + fpar[FP_KSR] * abs(u_n))
+    contacts[i, 0] = nx
+    contacts[i, 1] = ny
+    contacts[i, 2] = rx
+    contacts[i, 3] = ry
+    contacts[i, 4] = -beta_n * min(u_n, 0.0)
+    return u_n
+
+
+@numba.njit(cache=True)
+def resolve_two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
+    """Resolve one impact of two contacts with the config's contact model (module docstring).
+
+    Modifies s (centre-of-mass state) in place. Returns False, with s untouched, when no case
+    is admissible (the caller then resolves the contacts one at a time).
+    """
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    contacts = np.empty((2, 5))
+    u_a = _fill_contact(contacts, 0, s, fpar, surf_a, corner_a, c, sn)
+    u_b = _fill_contact(contacts, 1, s, fpar, surf_b, corner_b, c, sn)
+    same_surface = surf_a == surf_b
+    if ipar[IP_MODEL] == MODEL_PAPER:
+        nx = contacts[0, 0]
+        ny = contacts[0, 1]
+        if same_surface and nx * s[3] + ny * s[4] < 0.0:
+            saved3 = s[3]
+            saved4 = s[4]
+            saved5 = s[5]
+            # the law does not depend on the corner; its beta_normal on the faster approach
+            beta_n = fpar[FP_BN] / (1.0 + fpar[FP_KSR] * max(abs(u_a), abs(u_b)))
+            paper_law(s, fpar[FP_ALPHA], fpar[FP_R], beta_n, fpar[FP_BT], nx, ny)
+            if min(
+                corner_normal_velocity(s, contacts[0, 2], contacts[0, 3], nx, ny),
+                corner_normal_velocity(s, contacts[1, 2], contacts[1, 3], nx, ny),
+            ) >= 0.0:
+                return True
+            s[3] = saved3
+            s[4] = saved4
+            s[5] = saved5
+    inertia = fpar[FP_INERTIA]
+    dv = np.empty(3)
+    free = np.empty(3)
+    energy = best_impulse(s, inertia, fpar[FP_MU], fpar[FP_BT], contacts, same_surface, False, dv)
+    free_energy = best_impulse(s, inertia, fpar[FP_MU], fpar[FP_BT], contacts, same_surface, True, free)
+    if math.isinf(free_energy):
+        return False
+    if ipar[IP_MODEL] == MODEL_PAPER:
+        counts[C_FALLBACK] += 1
+    if math.isinf(energy):  # no admissible case with friction (a jam): frictionless
+        dv[:] = free
+    elif energy > 0.0:
+        # move towards the frictionless impulse until no energy is gained:
+        # dT(lam) = energy + qb lam + qa lam^2 along dv + lam (free - dv)
+        d0 = free[0] - dv[0]
+        d1 = free[1] - dv[1]
+        d2 = free[2] - dv[2]
+        qa = 0.5 * (d0 * d0 + d1 * d1 + inertia * d2 * d2)
+        qb = (s[3] + dv[0]) * d0 + (s[4] + dv[1]) * d1 + inertia * (s[5] + dv[2]) * d2
+        root = math.sqrt(max(qb * qb - 4.0 * qa * energy, 0.0)) - qb
+        lam = min(2.0 * energy / root, 1.0) if root > 0.0 else 1.0
+        dv[0] += lam * d0
+        dv[1] += lam * d1
+        dv[2] += lam * d2
+        counts[C_CLIPS] += 1
+    s[3] += dv[0]
+    s[4] += dv[1]
+    s[5] += dv[2]
+    return True
