@@ -11,7 +11,8 @@ beta_tangential = -0.35, beta_normal = 0.2, dt = 0.001 s, R = 1.9/sqrt(2) cm):
                  # arriving within it are one impact (a flat landing)
     [walls]      # separation = 0.20 (m); no [walls] section: no walls
     [initial]    # x0 = 0, y0 = 0.1 (m), phi0 = 0 (rad), vx0 = vy0 = 0 (m/s), omega0 = 10 (rad/s)
-    [effects]    # air_drag = 0 (1/m), com_offset = [0, 0] (m), speed_restitution = 0 (s/m); all off
+    [effects]    # air_drag = 0 (1/m), com_offset = [0, 0] (m), speed_restitution = 0 (s/m),
+                 # contact_time = 0 (s); all off
     [tracking]   # angle_offset = 0 (rad), time_scale = 1, length_scale = 1: how the tracker saw
                  # the die (measured drops only; the kernel ignores it)
     [world]      # g = 9.81 (m/s^2): the one source of g
@@ -102,12 +103,14 @@ class Effects:
 
     ``air_drag`` c (1/m): a = -c |v| v on the centre of mass; ``com_offset`` (dx, dy) (m): centre
     of mass offset from the geometric centre in the body frame (a loaded die); ``speed_restitution``
-    k (s/m): beta_normal / (1 + k |u_n|). The keys are declared in dice_sweep/effects.py.
+    k (s/m): beta_normal / (1 + k |u_n|); ``contact_time`` (s): a second corner arriving within it
+shares the impact (a flat landing). The keys are declared in dice_sweep/effects.py.
     """
 
     air_drag: float
     com_offset: tuple
     speed_restitution: float
+    contact_time: float = 0.0
 
 
 @dataclass(frozen=True)

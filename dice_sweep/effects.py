@@ -185,6 +185,15 @@ EFFECTS = (
         signature_note="frames predicted through an impact miss, more after fast impacts than after slow ones",
     ),
     Effect(
+        "flat_landing", "contact",
+        "a second corner arriving within the contact time after the first shares the impact: the two-contact impulse "
+        "takes the share 1 - delay / contact_time, the first corner's alone the rest",
+        params=(Param("contact_time", "s", "effects.contact_time", _fixed(0.0, 1e-3), 0.0, (3e-5, 1e-4, 3e-4), 1e-5),),
+        config_keys=(ConfigKey("effects", "contact_time", 0.0, "s", low=0.0, high=1e-3),),
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss, more after landings near flat than after tilted ones",
+    ),
+    Effect(
         "gravity", "flight", "the acceleration of free fall differs from the declared [world] g",
         params=(Param("g", "m/s^2", "world.g", lambda cfg: (0.5 * cfg.world.g, 1.5 * cfg.world.g), _declared_g,
                       lambda cfg: (0.96 * cfg.world.g, 1.04 * cfg.world.g), 0.1),),

@@ -43,6 +43,7 @@ from dice_sweep.physics.params import (
     FP_MU,
     FP_RHO_MAX,
     FP_TMAX,
+    FP_CONTACT_TIME,
     FP_WALL,
     FP_WINDOW,
     IP_CONTINUE,
@@ -180,13 +181,18 @@ def _impact(s, fpar, ipar, surf, corner, counts):
 @numba.njit(inline="always")  # as a call (four array arguments) it cost 8 % of fig08's rolls
 def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts):
     """Resolve the impact of ``corner`` on ``surf`` together with a second contact arriving
-    within the contact window, if any (physics/multi_contact.py).
+    within the contact window, if any (physics/multi_contact.py), or, with the flat_landing
+    effect, within the contact time, sharing the impact.
 
     Returns the normal velocity after (m/s), surface and corner of the contact that decides
-    what follows: of two, the table contact left slowest (a pivot candidate), else the first.
+    what follows: of two arriving within the window, the table contact left slowest (a pivot
+    candidate), else the first.
     """
-    surf_b, corner_b = second_contact(s, fpar, ipar[IP_N], n_surf, surf, corner, fpar[FP_WINDOW], tol, contact_speed)
-    if corner_b < 0 or not resolve_two_contacts(s, fpar, ipar, surf, corner, surf_b, corner_b, counts):
+    window = fpar[FP_WINDOW]
+    contact_time = fpar[FP_CONTACT_TIME]  # the flat_landing effect (0: off)
+    surf_b, corner_b, arrival = second_contact(s, fpar, ipar[IP_N], n_surf, surf, corner, max(window, contact_time), tol, contact_speed)
+    share = 1.0 if arrival <= window else 1.0 - arrival / max(contact_time, window)  # < 1: found by contact_time
+    if corner_b < 0 or not resolve_two_contacts(s, fpar, ipar, surf, corner, surf_b, corner_b, share, counts):
         return _impact(s, fpar, ipar, surf, corner, counts), surf, corner
     counts[C_IMPACTS] += 1
     counts[C_MULTI] += 1
@@ -195,7 +201,7 @@ def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, count
     nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
     rx, ry = corner_vector(s, fpar, corner)
     u_n = corner_normal_velocity(s, rx, ry, nx, ny)
-    if surf_b == SURF_TABLE:
+    if surf_b == SURF_TABLE and share >= 1.0:  # with a share below 1 the second corner has not arrived
         rx, ry = corner_vector(s, fpar, corner_b)
         u_b = s[4] + s[5] * rx
         if surf != SURF_TABLE or u_b < u_n:

@@ -37,7 +37,7 @@ import numba
 import numpy as np
 
 from dice_sweep.physics.flight import corner_offset, surface_frame
-from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, corner_normal_velocity, paper_law
+from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, corner_normal_velocity, paper_law, resolve_impact
 from dice_sweep.physics.params import FP_ALPHA, FP_BN, FP_BT, FP_INERTIA, FP_KSR, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_MODEL, MODEL_PAPER
 
 MAX_ROWS = 4  # two normal rows and at most two tangential rows
@@ -54,7 +54,7 @@ def second_contact(s, fpar, n, n_surf, surf0, corner0, window, tol, contact_spee
 
     A corner joins when it approaches its surface faster than ``contact_speed`` (m/s) and its
     gap would close, at its present normal speed, within ``window`` (or is within ``tol``,
-    m). Returns (surface, corner), (-1, -1) when none does.
+    m). Returns (surface, corner, arrival time in s), (-1, -1, inf) when none does.
     """
     c = math.cos(s[2])
     sn = math.sin(s[2])
@@ -83,7 +83,7 @@ def second_contact(s, fpar, n, n_surf, surf0, corner0, window, tol, contact_spee
                 best_time = arrival
                 best_surf = surf
                 best_corner = k
-    return best_surf, best_corner
+    return best_surf, best_corner, best_time
 
 
 @numba.njit(cache=True)
@@ -319,12 +319,31 @@ def _fill_contact(contacts, i, s, fpar, surf, corner, c, sn):
 
 
 @numba.njit(cache=True)
-def resolve_two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
+def resolve_two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, share, counts):
     """Resolve one impact of two contacts with the config's contact model (module docstring).
 
-    Modifies s (centre-of-mass state) in place. Returns False, with s untouched, when no case
-    is admissible (the caller then resolves the contacts one at a time).
+    ``share`` in (0, 1]: the flat_landing effect's share of the two-contact impulse; the rest
+    is the first corner's single-contact impulse (docs/physics.md, "Flat landing"). Modifies s
+    (centre-of-mass state) in place. Returns False, with s untouched, when no case is
+    admissible (the caller then resolves the contacts one at a time).
     """
+    if share >= 1.0:
+        return _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts)
+    both = s.copy()
+    if not _two_contacts(both, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
+        return False
+    resolve_impact(s, fpar, ipar, surf_a, corner_a, counts)
+    # kinetic energy is convex in the velocity change, so the blend of two changes that do
+    # not gain energy does not either; the first corner leaves in both, so in the blend
+    for i in range(3, 6):
+        s[i] = share * both[i] + (1.0 - share) * s[i]
+    return True
+
+
+@numba.njit(cache=True)
+def _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
+    """The whole two-contact impact (share 1) on s; False, s untouched, when no case is
+    admissible."""
     c = math.cos(s[2])
     sn = math.sin(s[2])
     contacts = np.empty((2, 5))

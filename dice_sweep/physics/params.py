@@ -33,7 +33,8 @@ FP_COM_Y = 12
 FP_INERTIA = 13  # I_com / M, m^2
 FP_RHO_MAX = 14  # largest distance from the COM to a corner, m
 FP_WINDOW = 15  # contact window: contacts arriving within it are one impact, s
-FP_CORNERS = 16  # then (rho_k, cos gamma_k, sin gamma_k) for k = 0..n-1
+FP_CONTACT_TIME = 16  # flat_landing effect: contact duration over which a second corner shares the impact, s
+FP_CORNERS = 17  # then (rho_k, cos gamma_k, sin gamma_k) for k = 0..n-1
 CORNER_STRIDE = 3
 
 # ipar indices
@@ -60,18 +61,18 @@ def inertia_ratio(sides):
 
 
 def _effects_values(cfg):
-    """(air_drag, com_offset, speed_restitution) of a config, off when absent."""
+    """(air_drag, com_offset, speed_restitution, contact_time) of a config, off when absent."""
     effects = getattr(cfg, "effects", None)
     if effects is None:
-        return 0.0, (0.0, 0.0), 0.0
-    return effects.air_drag, tuple(effects.com_offset), effects.speed_restitution
+        return 0.0, (0.0, 0.0), 0.0, 0.0
+    return effects.air_drag, tuple(effects.com_offset), effects.speed_restitution, getattr(effects, "contact_time", 0.0)
 
 
 def pack_params(cfg):
     """Flatten a validated :class:`dice_sweep.config.Config` into ``(fpar, ipar)``."""
     n = cfg.die.sides
     radius = cfg.die.circumradius
-    drag, (dx, dy), k_speed = _effects_values(cfg)
+    drag, (dx, dy), k_speed, contact_time = _effects_values(cfg)
     fpar = np.zeros(FP_CORNERS + CORNER_STRIDE * n)
     fpar[FP_R] = radius
     fpar[FP_G] = cfg.world.g
@@ -87,6 +88,7 @@ def pack_params(cfg):
     fpar[FP_ALPHA] = inertia / (radius * radius)
     fpar[FP_MU] = getattr(cfg.contact, "friction", math.inf)
     fpar[FP_WINDOW] = getattr(cfg.contact, "window", DEFAULT_CONTACT_WINDOW)
+    fpar[FP_CONTACT_TIME] = contact_time
     fpar[FP_DRAG] = drag
     fpar[FP_KSR] = k_speed
     fpar[FP_COM_X] = dx

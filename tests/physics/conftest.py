@@ -14,7 +14,7 @@ TABLE1_RADIUS = 0.019 / math.sqrt(2)  # m, Smith 2014 Table I
 
 def make_config(sides=4, radius=TABLE1_RADIUS, beta_n=0.2, beta_t=-0.35, separation=None,
                 method="event", dt=1e-3, t_max=30.0, max_events=100_000, g=9.81, model="paper",
-                friction=math.inf, window=1e-6, air_drag=0.0, com_offset=(0.0, 0.0), speed_restitution=0.0):
+                friction=math.inf, window=1e-6, air_drag=0.0, com_offset=(0.0, 0.0), speed_restitution=0.0, contact_time=0.0):
     """A config-like object for the kernel without going through TOML."""
     return SimpleNamespace(
         die=SimpleNamespace(sides=sides, circumradius=radius),
@@ -23,7 +23,7 @@ def make_config(sides=4, radius=TABLE1_RADIUS, beta_n=0.2, beta_t=-0.35, separat
         world=SimpleNamespace(g=g),
         integrator=SimpleNamespace(method=method, dt=dt, t_max=t_max, max_events=max_events),
         effects=SimpleNamespace(air_drag=air_drag, com_offset=com_offset,
-                                speed_restitution=speed_restitution),
+                                speed_restitution=speed_restitution, contact_time=contact_time),
     )
 
 

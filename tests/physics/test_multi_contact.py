@@ -43,7 +43,7 @@ def impact(params, state, contacts):
     s = np.array(state, float)
     counts = np.zeros(N_COUNTS, np.int32)
     (sa, ca), (sb, cb) = contacts
-    assert resolve_two_contacts(s, fpar, ipar, sa, ca, sb, cb, counts)
+    assert resolve_two_contacts(s, fpar, ipar, sa, ca, sb, cb, 1.0, counts)
     return s, counts
 
 
@@ -209,7 +209,7 @@ def test_second_contact_is_found_within_the_window_only():
         corners = corner_vectors(sides, phi)
         first = int(np.argmin(corners[:, 1]))
         state = np.array([0.0, -corners[first, 1], phi, 0.0, -1.0, 0.0])
-        surf, corner = second_contact(state, fpar, sides, 1, SURF_TABLE, first, 1e-6, 1e-12 * R, 1e-9)
+        surf, corner, _ = second_contact(state, fpar, sides, 1, SURF_TABLE, first, 1e-6, 1e-12 * R, 1e-9)
         assert (corner >= 0) == joins, (tilt, side_length * abs(tilt))
         if joins:
             assert (surf, corner) == (SURF_TABLE, 1 - first)
@@ -262,3 +262,38 @@ def test_flat_wall_hits_are_continuous_in_tilt_and_mirror_symmetric(model):
         assert np.array_equal(_wall_map(params, tilt)[0], flat), tilt
     mirrored = _wall_map(params, 0.0, mirrored=True)[0]
     assert np.array_equal(mirrored, 4 - flat)
+
+
+def _after_first_impact(**kwargs):
+    """COM state just after the first impact of a square landing tilted by 1e-3 rad at
+    about 1 m/s (the second corner arrives about S * 1e-3 / (1 m/s) = 1.9e-5 s later)."""
+    params = make_params(sides=4, model="rigid", beta_n=0.4, beta_t=0.0, friction=0.5, **kwargs)
+    state = [0.0, 0.06, flat_angle(4, 0, SURF_TABLE) + 1e-3, 0.2, 0.0, 0.0]
+    _, _, _, _, rec, counts = run_one(params, state)
+    return rec[1, 2:8], counts
+
+
+def test_flat_landing_effect_shares_the_impact_linearly_in_the_delay():
+    """The flat_landing effect: a second corner arriving a delay d after the first, with
+    d inside the contact time T, gives the two-contact impulse the share 1 - d/T. Checked
+    between the single-contact impact (T = 0) and the whole two-contact one (a window that
+    takes the delay): the share measured at one T predicts the share at another, and the
+    delay it implies is the geometric one."""
+    single, counts_single = _after_first_impact()
+    both, counts_both = _after_first_impact(window=1e-3)
+    assert counts_single[5] == 0 and counts_both[5] >= 1
+    assert abs(both[5] - single[5]) > 1.0  # rad/s: the two laws differ
+    shares = {}
+    for contact_time in (4e-5, 1e-4):
+        blended, _ = _after_first_impact(contact_time=contact_time)
+        share = (blended[5] - single[5]) / (both[5] - single[5])
+        # all three velocities are the same blend
+        assert np.allclose(blended[3:5], single[3:5] + share * (both[3:5] - single[3:5]), atol=1e-12)
+        shares[contact_time] = share
+    delay = 4e-5 * (1 - shares[4e-5])
+    assert shares[1e-4] == pytest.approx(1 - delay / 1e-4, abs=1e-9)
+    side, speed = math.sqrt(2) * R, math.sqrt(2 * 9.81 * (0.06 - R / math.sqrt(2)))
+    assert delay == pytest.approx(side * math.sin(1e-3) / speed, rel=0.05)
+    # no effect when the contact time is shorter than the delay
+    short, _ = _after_first_impact(contact_time=0.5 * delay)
+    assert np.array_equal(short, single)
