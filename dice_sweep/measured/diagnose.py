@@ -309,6 +309,8 @@ def _null_excluded(name, interval, cfg):
     friction, is excluded when the interval stays below the upper fit bound)."""
     entry = registry.param(name)
     null = entry.null_value(cfg)
+    if not all(math.isfinite(v) for v in interval):
+        return False  # no interval (a parameter the tracks say nothing about) excludes nothing
     if math.isinf(null):
         return interval[1] < entry.bounds_of(cfg)[1] * (1 - 1e-6)
     return not (interval[0] <= null <= interval[1])
@@ -321,7 +323,8 @@ def _describe_params(fit, draws, cfg, red=None):
     """Value, 95 % interval, unit, bound and null of each fitted parameter; with ``red``, the
     share of its information (diagonal of the reduced normal matrix) from the most informative
     track, flagged above TOP_TRACK_SHARE: one track then decides the value (seen when a
-    prediction passes near a discontinuity) and the interval is not to be trusted."""
+    prediction passes near a discontinuity) and the interval is not to be trusted; a parameter
+    with no information at all gets no interval (NaN) and ``identified`` false."""
     out = {}
     for k, name in enumerate(fit.free):
         entry = registry.param(name)
@@ -333,6 +336,11 @@ def _describe_params(fit, draws, cfg, red=None):
             share = float(info.max() / info.sum()) if info.sum() > 0 else math.nan
             out[name]["top_track_share"] = share
             out[name]["one_track_decides"] = bool(share > TOP_TRACK_SHARE)
+            # No track's residual moves with it (e.g. a contact time shorter than every
+            # landing's delay): the bootstrap would give a zero-width interval, not a measurement.
+            out[name]["identified"] = bool(info.sum() > 0)
+            if not out[name]["identified"]:
+                out[name]["ci95"] = [math.nan, math.nan]
     return out
 
 
