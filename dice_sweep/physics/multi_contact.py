@@ -327,19 +327,21 @@ def resolve_two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, shar
     (centre-of-mass state) in place. Returns False, with s untouched, when no case is
     admissible (the caller then resolves the contacts one at a time).
     """
-    if share >= 1.0:
-        return _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts)
     both = s.copy()
     if not _two_contacts(both, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
         return False
-    resolve_impact(s, fpar, ipar, surf_a, corner_a, counts)
+    if share < 1.0:
+        resolve_impact(s, fpar, ipar, surf_a, corner_a, counts)
     # kinetic energy is convex in the velocity change, so the blend of two changes that do
     # not gain energy does not either; the first corner leaves in both, so in the blend
     for i in range(3, 6):
-        s[i] = share * both[i] + (1.0 - share) * s[i]
+        s[i] = both[i] if share >= 1.0 else share * both[i] + (1.0 - share) * s[i]
     return True
 
 
+# One call site per function below: numba links a callee's code into each caller and LLVM
+# inlines it per call site, so two calls of best_impulse compiled it twice (a cold start
+# 6 s longer; scripts/bench.py, cold).
 @numba.njit(cache=True)
 def _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
     """The whole two-contact impact (share 1) on s; False, s untouched, when no case is
@@ -369,11 +371,14 @@ def _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
             s[4] = saved4
             s[5] = saved5
     inertia = fpar[FP_INERTIA]
-    dv = np.empty(3)
-    free = np.empty(3)
-    energy = best_impulse(s, inertia, fpar[FP_MU], fpar[FP_BT], contacts, same_surface, False, dv)
-    free_energy = best_impulse(s, inertia, fpar[FP_MU], fpar[FP_BT], contacts, same_surface, True, free)
-    if math.isinf(free_energy):
+    changes = np.empty((2, 3))  # with friction, frictionless
+    energies = np.empty(2)
+    for k in range(2):
+        energies[k] = best_impulse(s, inertia, fpar[FP_MU], fpar[FP_BT], contacts, same_surface, k == 1, changes[k])
+    energy = energies[0]
+    dv = changes[0]
+    free = changes[1]
+    if math.isinf(energies[1]):
         return False
     if ipar[IP_MODEL] == MODEL_PAPER:
         counts[C_FALLBACK] += 1
