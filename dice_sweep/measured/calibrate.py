@@ -18,7 +18,7 @@ from dice_sweep.geometry import inertia_ratio
 from dice_sweep.measured import impacts
 from dice_sweep.measured.impacts import landing_tilt, rest_pose, table_level, track_impacts
 
-__all__ = ["CalibrationResult", "calibrate", "summarise", "impact_row", "COEFFICIENTS", "DIAGNOSTICS", "GROUPS"]
+__all__ = ["CalibrationResult", "calibrate", "trackset_impacts", "summarise", "impact_row", "COEFFICIENTS", "DIAGNOSTICS", "GROUPS"]
 
 # name -> what it is, for the summary and the figure
 COEFFICIENTS = {
@@ -268,6 +268,40 @@ def impact_row(traj, index, impact, *, sides, circumradius, g):
     }
 
 
+def trackset_impacts(trackset, cfg, *, first_only=False):
+    """The impacts of every track, fitted as :func:`calibrate` fits them.
+
+    Parameters
+    ----------
+    trackset : dice_sweep.measured.tracks.TrackSet
+        Tracks in the model's convention.
+    cfg : dice_sweep.config.Config
+        The die (sides, circumradius) and free fall (``[world] g``).
+    first_only : bool
+        Only each track's first impact (fitted exactly as among all of them).
+
+    Returns
+    -------
+    rests : list
+        Per track, its pose at rest (x, y, phi) or None (:func:`~dice_sweep.measured.impacts.rest_pose`).
+    table : float
+        Height of the table in the tracks' frame, m (the median lowest-corner height at rest).
+    found : list of (Track, int, Impact or None)
+        In track order: the track, the impact's index among those found in it (0: first) and
+        the fitted impact (None when a side has too few frames).
+    """
+    sides, radius = cfg.die.sides, cfg.die.circumradius
+    rests = [rest_pose(tr.x, tr.y, tr.phi, tr.usable, radius, tr.t) for tr in trackset.tracks]
+    table = table_level([p for p in rests if p is not None], sides=sides, circumradius=radius)
+    found = []
+    for track in trackset.tracks:
+        for index, impact in track_impacts(
+            track.t, track.x, track.y, track.phi, track.usable, first_only=first_only, sides=sides, circumradius=radius, table=table, g=cfg.world.g
+        ):
+            found.append((track, index, impact))
+    return rests, table, found
+
+
 def calibrate(trackset, cfg):
     """Measure the restitution coefficients at every impact of every track.
 
@@ -283,18 +317,15 @@ def calibrate(trackset, cfg):
     CalibrationResult
     """
     sides, radius = cfg.die.sides, cfg.die.circumradius
-    effects = cfg.effects
     g = cfg.world.g
-    rests = [rest_pose(tr.x, tr.y, tr.phi, tr.usable, radius, tr.t) for tr in trackset.tracks]
-    table = table_level([p for p in rests if p is not None], sides=sides, circumradius=radius)
+    rests, table, found = trackset_impacts(trackset, cfg)
     rows = []
     skipped = {"too few frames on a side": 0, "not clean (fit, contact or continuity)": 0}
-    for track in trackset.tracks:
-        for index, impact in track_impacts(track.t, track.x, track.y, track.phi, track.usable, sides=sides, circumradius=radius, table=table, g=g):
-            if impact is None:
-                skipped["too few frames on a side"] += 1
-            else:
-                rows.append(impact_row(track.traj, index, impact, sides=sides, circumradius=radius, g=g))
+    for track, index, impact in found:
+        if impact is None:
+            skipped["too few frames on a side"] += 1
+        else:
+            rows.append(impact_row(track.traj, index, impact, sides=sides, circumradius=radius, g=g))
     skipped["not clean (fit, contact or continuity)"] = sum(not row["clean"] for row in rows)
     result = CalibrationResult(
         path=trackset.path,
