@@ -1,14 +1,22 @@
-"""Outcome maps of the kernel's rigid model against pymunk (Chipmunk2D), issue 4.
+"""Outcome maps of the kernel's rigid model against pymunk (Chipmunk2D), issues 4 and 15.
 
 A Table-I-sized square (R = 1.9/sqrt(2) cm), beta_normal = 0.2, beta_tangential = 0 (pymunk has
 no tangential restitution), Coulomb friction mu = 0.5, dropped with phi0 = 0, vx0 = 0 from
 y0 in [0.02, 0.08] m with omega0 in [0, 30] rad/s. Prints the share of pixels on which the two
 agree, overall and away from basin boundaries, and pymunk's rolls/s; writes the maps side by
 side. With --explain, sorts the disagreeing pixels by the impact at which the two paths part.
+
+With --flat, the maps of issue 15 where flat impacts (two corners at once) dominate instead:
+a pentagon thrown flat at a wall, and a hexagon and a square dropped flat on a side
+(dice_sweep.reference.pymunk_die.flat_impact_configs), y0 against vx0 on 32 x 32. Prints a
+table of the agreement overall, on the pixels with and without a flat impact, on pymunk's
+settled pixels, and pymunk's map against itself at half the step; writes the maps.
 docs/validation.md reports and explains the numbers.
 
     python scripts/compare_pymunk.py [--num 48] [--set contact.friction=0.3] [--explain 4] [--png PATH]
         [--dt 1e-4] [--iterations 30] [--collision-slop 1e-5] [--overlap-fixed-per-step 0.01]
+    python scripts/compare_pymunk.py --flat [--num 32] [--maps wall hexagon square] [--check-dt 2.5e-5]
+        [--dt 5e-5] [--iterations 100] [--png PATH] [--set KEY=VALUE]
 """
 
 import argparse
@@ -21,16 +29,28 @@ from dice_sweep.config import PARAM_UNITS
 from dice_sweep.physics.kernel import EVENT_IMPACT, REC_EVENT, REC_STATE, REC_T
 from dice_sweep.plotting import axis_label, draw_outcome_map, outcome_figure
 from dice_sweep.reference.pymunk_die import (
+    FLAT_DT,
+    FLAT_SETTINGS,
     PymunkDie,
     PymunkSettings,
     compare_with_kernel,
     comparison_config,
+    first_contact_is_flat,
+    flat_impact_configs,
+    grid_states,
+    kernel_flat_impacts,
+    map_agreement,
+    pymunk_map,
     settled_mask,
 )
 from dice_sweep.roll import initial_state, roll_config, sample_path
 
 NEIGHBOURHOODS = (3, 5)  # widths of the "away from boundaries" masks
-DEFAULT_PNG = Path(__file__).resolve().parent.parent / "docs" / "figures" / "pymunk_vs_rigid.png"
+FIGURES = Path(__file__).resolve().parent.parent / "docs" / "figures"
+DEFAULT_PNG = FIGURES / "pymunk_vs_rigid.png"
+FLAT_PNG = FIGURES / "pymunk_flat_impacts.png"
+DEFAULT_NUM = 48  # cells per axis of issue 4's map
+FLAT_NUM = 32  # and of issue 15's maps
 # --explain: a jump of the velocity beyond what gravity gives in one step is an impulse
 IMPULSE_JUMP = 10.0  # x g dt
 DIVERGED_ANGLE = 0.1  # rad: the two paths count as apart once their angles differ this much
@@ -54,25 +74,80 @@ def print_agreement(comparison):
     print(f"pymunk: {comparison.rolls_per_second():.1f} rolls per CPU second (one core, dt = {comparison.dt:g} s)")
 
 
-def write_figure(cfg, comparison, png_path):
-    """Kernel map, pymunk map, and the kernel map with the disagreeing pixels in black."""
-    grid = cfg.grid
-    labels = axis_label(grid.x.param, PARAM_UNITS[grid.x.param]), axis_label(grid.y.param, PARAM_UNITS[grid.y.param])
-    differs = np.where(comparison.kernel == comparison.pymunk, comparison.kernel, -1)
-    panels = (
-        (comparison.kernel, f"kernel, model {cfg.contact.model}"),
-        (comparison.pymunk, "pymunk"),
-        (differs, f"kernel, black where pymunk differs ({comparison.agreement()[0]:.1%} agree)"),
-    )
-    # outcome_figure gives an Agg-backed figure with constrained layout; refill it with 3 panels
-    fig = outcome_figure(comparison.kernel, comparison.x_values, comparison.y_values, *labels, cfg.die.sides)
+def write_figure(rows, png_path):
+    """One row per (cfg, comparison, name): kernel map, pymunk map, and the kernel map with the
+    disagreeing pixels in black; ``name`` (None: none) heads the row's titles."""
+    # outcome_figure gives an Agg-backed figure with constrained layout; refill it with 3 panels a row
+    cfg, comparison, _ = rows[0]
+    fig = outcome_figure(comparison.kernel, comparison.x_values, comparison.y_values, "", "", cfg.die.sides)
     fig.clear()
-    fig.set_size_inches(18, 5)
-    for ax, (outcome, title) in zip(fig.subplots(1, len(panels)), panels):
-        draw_outcome_map(ax, outcome, comparison.x_values, comparison.y_values, *labels, cfg.die.sides, title=title)
+    fig.set_size_inches(18, 5 * len(rows))
+    for axes, (cfg, comparison, name) in zip(fig.subplots(len(rows), 3, squeeze=False), rows):
+        grid = cfg.grid
+        labels = axis_label(grid.x.param, PARAM_UNITS[grid.x.param]), axis_label(grid.y.param, PARAM_UNITS[grid.y.param])
+        differs = np.where(comparison.kernel == comparison.pymunk, comparison.kernel, -1)
+        head = "" if name is None else f"{name}: "
+        panels = (
+            (comparison.kernel, f"{head}kernel, model {cfg.contact.model}"),
+            (comparison.pymunk, f"{head}pymunk" + ("" if name is None else f", dt {comparison.dt:g} s")),
+            (differs, f"{head}kernel, black where pymunk differs ({comparison.agreement()[0]:.1%} agree)"),
+        )
+        for ax, (outcome, title) in zip(axes, panels):
+            draw_outcome_map(ax, outcome, comparison.x_values, comparison.y_values, *labels, cfg.die.sides, title=title)
     png_path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png_path, dpi=100)
     print(f"wrote {png_path}")
+
+
+def share(agreement):
+    """'96.48 % (1024)' for an (share, count) pair; '-' for no pixels."""
+    value, count = agreement
+    return "-" if count == 0 else f"{value:.2%} ({count})"
+
+
+def compare_flat(num, names, overrides, dt, check_dt, settings, png_path):
+    """Issue 15's check: the kernel against pymunk on maps where flat impacts dominate."""
+    configs = flat_impact_configs(num, overrides)
+    rows, table = [], []
+    for name in names:
+        cfg = configs[name]
+        print(f"\n{name}: n = {cfg.die.sides}, R = {cfg.die.circumradius:.6g} m, phi0 = {cfg.initial.phi0:.6g} rad, "
+              f"walls {cfg.walls.separation} m; {cfg.grid.x.param} in [{cfg.grid.x.min:g}, {cfg.grid.x.max:g}], "
+              f"{cfg.grid.y.param} in [{cfg.grid.y.min:g}, {cfg.grid.y.max:g}], {num} x {num}; model {cfg.contact.model}, "
+              f"beta_normal {cfg.contact.beta_normal:g}, beta_tangential {cfg.contact.beta_tangential:g}, "
+              f"friction {cfg.contact.friction:g}")
+        comparison = compare_with_kernel(cfg, dt=dt, settings=settings)
+        first_flat = first_contact_is_flat(cfg, grid_states(cfg)[2]).reshape(comparison.kernel.shape)
+        kernel_flat, criterion = kernel_flat_impacts(cfg, comparison)
+        settled = settled_mask(comparison.pymunk, 3)
+        print(f"  kernel flat impact: {criterion}")
+        print(f"  undecided pixels: pymunk {int((comparison.pymunk < 0).sum())}, kernel {int((comparison.kernel < 0).sum())}; "
+              f"pymunk {comparison.rolls_per_second():.1f} rolls per CPU second (dt {dt:g} s, {settings.iterations} passes)")
+        if check_dt:
+            check = pymunk_map(cfg, dt=check_dt, settings=settings)
+            itself = share(map_agreement(comparison.pymunk, check.outcome))
+            print(f"  pymunk at dt {check_dt:g} s against dt {dt:g} s: {itself} agree ({check.seconds:.0f} s CPU)")
+        else:
+            itself = "-"
+        table.append((
+            name,
+            share(comparison.agreement_on()),
+            share(comparison.agreement_on(first_flat)),
+            share(comparison.agreement_on(kernel_flat)),
+            share(comparison.agreement_on(~kernel_flat)),
+            f"{settled.mean():.1%}",
+            share(comparison.agreement_on(settled)),
+            itself,
+        ))
+        rows.append((cfg, comparison, name))
+    print(f"\nkernel against pymunk (dt {dt:g} s, {settings.iterations} passes): share of pixels that agree (pixels)")
+    header = ("map", "all", "flat first contact", "kernel flat impact", "no kernel flat impact",
+              "pymunk settled (3 x 3)", "on pymunk's settled", f"pymunk dt {check_dt:g} vs {dt:g}")
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header))
+    for row in table:
+        print("| " + " | ".join(row) + " |")
+    write_figure(rows, png_path)
 
 
 def kernel_impacts(cfg, report):
@@ -192,23 +267,46 @@ def explain(cfg, comparison, count):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--num", type=int, default=48, help="cells per axis (default 48)")
+    parser.add_argument("--flat", action="store_true",
+                        help="issue 15's maps where flat impacts dominate, instead of issue 4's map")
+    parser.add_argument("--num", type=int, default=None,
+                        help=f"cells per axis (default {DEFAULT_NUM}; {FLAT_NUM} with --flat)")
     parser.add_argument("--set", action="append", default=[], dest="overrides", metavar="KEY=VALUE",
                         help="config override, e.g. contact.friction=0.3 (repeatable)")
-    parser.add_argument("--png", type=Path, default=DEFAULT_PNG, help="figure to write")
+    parser.add_argument("--png", type=Path, default=None,
+                        help=f"figure to write (default docs/figures/{DEFAULT_PNG.name}; {FLAT_PNG.name} with --flat)")
     parser.add_argument("--explain", type=int, default=None, metavar="K",
                         help="count the disagreeing pixels by the impact at which the two paths part, and "
                              "print both paths of K of them, the most settled first")
+    flat_maps = tuple(flat_impact_configs(2))
+    parser.add_argument("--maps", nargs="+", choices=flat_maps, default=list(flat_maps),
+                        help="with --flat: which maps (default all)")
+    parser.add_argument("--check-dt", type=float, default=None,
+                        help="with --flat: pymunk's map again at this step, s, against its own at --dt "
+                             "(default half of --dt; 0: skip)")
     defaults = PymunkSettings()
-    parser.add_argument("--dt", type=float, default=1e-4, help="pymunk's step, s (default 1e-4)")
-    parser.add_argument("--iterations", type=int, default=defaults.iterations,
-                        help=f"pymunk solver passes per step (default {defaults.iterations})")
+    parser.add_argument("--dt", type=float, default=None, help=f"pymunk's step, s (default 1e-4; {FLAT_DT:g} with --flat)")
+    parser.add_argument("--iterations", type=int, default=None,
+                        help=f"pymunk solver passes per step (default {defaults.iterations}; "
+                             f"{FLAT_SETTINGS.iterations} with --flat)")
     parser.add_argument("--collision-slop", type=float, default=defaults.collision_slop,
                         help=f"overlap left uncorrected, m (default {defaults.collision_slop:g})")
     parser.add_argument("--overlap-fixed-per-step", type=float, default=defaults.overlap_fixed_per_step,
                         help=f"share of the overlap corrected per step (default {defaults.overlap_fixed_per_step:g})")
     args = parser.parse_args()
-    settings = PymunkSettings(args.iterations, args.collision_slop, args.overlap_fixed_per_step)
+    if args.flat:
+        if args.explain is not None:
+            parser.error("--explain goes with issue 4's map, not with --flat")
+        dt = FLAT_DT if args.dt is None else args.dt
+        settings = PymunkSettings(FLAT_SETTINGS.iterations if args.iterations is None else args.iterations,
+                                  args.collision_slop, args.overlap_fixed_per_step)
+        check_dt = 0.5 * dt if args.check_dt is None else args.check_dt
+        compare_flat(args.num or FLAT_NUM, args.maps, args.overrides, dt, check_dt, settings, args.png or FLAT_PNG)
+        return
+    args.num = args.num or DEFAULT_NUM
+    args.dt = 1e-4 if args.dt is None else args.dt
+    settings = PymunkSettings(defaults.iterations if args.iterations is None else args.iterations,
+                              args.collision_slop, args.overlap_fixed_per_step)
     cfg = comparison_config(args.num, args.overrides)
     print(f"grid {args.num} x {args.num}: {cfg.grid.x.param} in [{cfg.grid.x.min:g}, {cfg.grid.x.max:g}], "
           f"{cfg.grid.y.param} in [{cfg.grid.y.min:g}, {cfg.grid.y.max:g}]; model {cfg.contact.model}, "
@@ -217,7 +315,7 @@ def main():
     comparison = compare_with_kernel(cfg, dt=args.dt, settings=settings)
     print(f"pymunk: dt {args.dt:g} s, {settings}")
     print_agreement(comparison)
-    write_figure(cfg, comparison, args.png)
+    write_figure([(cfg, comparison, None)], args.png or DEFAULT_PNG)
     if args.explain is not None:
         explain(cfg, comparison, args.explain)
         first_impacts(cfg, comparison, FIRST_IMPACT_STRIDE)

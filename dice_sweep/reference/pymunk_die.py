@@ -297,6 +297,30 @@ def settled_mask(outcome_map, width=3):
     return (windows == outcome_map[:, :, None, None]).all(axis=(2, 3)) & (outcome_map >= 0)
 
 
+def map_agreement(first, second, mask=None):
+    """Share of pixels on which two outcome maps give the same side.
+
+    Parameters
+    ----------
+    first, second : array_like of int, shape (ny, nx)
+        Sides, -1 undecided (two undecided pixels count as agreeing).
+    mask : array_like of bool, shape (ny, nx), optional
+        Pixels to compare; by default all.
+
+    Returns
+    -------
+    share : float
+        In [0, 1]; NaN when the mask is empty.
+    count : int
+        Pixels compared.
+    """
+    first, second = np.asarray(first), np.asarray(second)
+    mask = np.ones(first.shape, bool) if mask is None else np.asarray(mask, bool)
+    count = int(mask.sum())
+    same = int((first == second)[mask].sum())
+    return (same / count if count else math.nan), count
+
+
 @dataclass(frozen=True)
 class MapComparison:
     """Outcome maps of the kernel and of pymunk over one grid, and how far they agree.
@@ -315,6 +339,10 @@ class MapComparison:
         pymunk's step, s.
     settings : PymunkSettings
         pymunk's solver settings.
+    kernel_status : numpy.ndarray of uint8, shape (ny, nx)
+        ``dice_sweep.physics.STATUS_NAMES`` codes of the kernel's rolls.
+    kernel_counts : dict of str to numpy.ndarray of int32, shape (ny, nx)
+        The kernel's event tallies, one map per ``dice_sweep.physics.COUNT_COLUMNS`` name.
     """
 
     kernel: np.ndarray
@@ -325,6 +353,8 @@ class MapComparison:
     pymunk_seconds: float
     dt: float
     settings: PymunkSettings
+    kernel_status: np.ndarray
+    kernel_counts: dict
 
     def agreement(self, width=None):
         """Share of pixels with the same side, over all pixels or (``width``) the settled ones.
@@ -342,10 +372,19 @@ class MapComparison:
         count : int
             Pixels compared.
         """
-        mask = np.ones(self.kernel.shape, bool) if width is None else settled_mask(self.kernel, width)
-        count = int(mask.sum())
-        same = int((self.kernel == self.pymunk)[mask].sum())
-        return (same / count if count else math.nan), count
+        return self.agreement_on(None if width is None else settled_mask(self.kernel, width))
+
+    def agreement_on(self, mask=None):
+        """Share of pixels with the same side among those of ``mask`` (bool (ny, nx); None: all).
+
+        Returns
+        -------
+        share : float
+            In [0, 1]; NaN when the mask is empty.
+        count : int
+            Pixels compared.
+        """
+        return map_agreement(self.kernel, self.pymunk, mask)
 
     def rolls_per_second(self):
         """pymunk rolls per CPU second (it runs on one core)."""
@@ -389,7 +428,59 @@ def comparison_config(num=48, overrides=()):
     -------
     dice_sweep.config.Config
     """
-    return parse_config(COMPARISON_CONFIG, "COMPARISON_CONFIG", [f"grid.x.num={num}", f"grid.y.num={num}", *overrides])
+    return _config_on_grid(COMPARISON_CONFIG, "COMPARISON_CONFIG", num, overrides)
+
+
+def _config_on_grid(text, name, num, overrides):
+    """Parse config ``text`` (named ``name`` in errors) with a num x num grid, then ``overrides``."""
+    return parse_config(text, name, [f"grid.x.num={num}", f"grid.y.num={num}", *overrides])
+
+
+@dataclass(frozen=True)
+class PymunkMap:
+    """pymunk's outcome map over a config's grid (:func:`pymunk_map`).
+
+    Attributes
+    ----------
+    outcome : numpy.ndarray of int8, shape (ny, nx)
+        Sides, -1 undecided; row i belongs to the i-th value of the grid's y axis.
+    status : numpy.ndarray of uint8, shape (ny, nx)
+        ``STATUS_NAMES`` codes.
+    seconds : float
+        CPU time of the rolls, s.
+    dt : float
+        pymunk's step, s.
+    """
+
+    outcome: np.ndarray
+    status: np.ndarray
+    seconds: float
+    dt: float
+
+
+def grid_states(cfg):
+    """Axis values xs, ys and the initial states of ``cfg``'s grid, shape (len(ys) * len(xs), 6),
+    rows y slow and x fast, as the maps are stored."""
+    from dice_sweep.sweep import axis_values, initial_states
+
+    xs, ys = axis_values(cfg.grid.x), axis_values(cfg.grid.y)
+    return xs, ys, initial_states(cfg, xs, ys)
+
+
+def pymunk_map(cfg, *, dt=1e-4, settings=PymunkSettings()):
+    """Roll every cell of ``cfg``'s grid in pymunk (:func:`pymunk_batch`, t_max of the config).
+
+    Returns
+    -------
+    PymunkMap
+    """
+    xs, ys, states = grid_states(cfg)
+    # CPU time of this process: the machine may be shared, and pymunk runs on one core
+    start = time.process_time()
+    reference = pymunk_batch(cfg, states, dt=dt, t_max=cfg.integrator.t_max, settings=settings)
+    seconds = time.process_time() - start
+    shape = (len(ys), len(xs))
+    return PymunkMap(reference.outcome.reshape(shape), reference.status.reshape(shape), seconds, dt)
 
 
 def compare_with_kernel(cfg, *, dt=1e-4, settings=PymunkSettings()):
@@ -408,23 +499,228 @@ def compare_with_kernel(cfg, *, dt=1e-4, settings=PymunkSettings()):
     -------
     MapComparison
     """
-    from dice_sweep.sweep import SweepJob, initial_states  # the numba kernel: only needed here
+    from dice_sweep.physics import COUNT_COLUMNS  # the numba kernel: only needed here
+    from dice_sweep.sweep import SweepJob
 
     job = SweepJob.from_config(cfg)
-    states = initial_states(cfg, job.xs, job.ys)
-    shape = (len(job.ys), len(job.xs))
-    kernel_outcome = job.roll(states)[0]
-    # CPU time of this process: the machine may be shared, and pymunk runs on one core
-    start = time.process_time()
-    reference = pymunk_batch(cfg, states, dt=dt, t_max=cfg.integrator.t_max, settings=settings)
-    seconds = time.process_time() - start
+    xs, ys, states = grid_states(cfg)
+    shape = (len(ys), len(xs))
+    kernel_outcome, kernel_status, kernel_counts, _ = job.roll(states)
+    reference = pymunk_map(cfg, dt=dt, settings=settings)
     return MapComparison(
         kernel=kernel_outcome.reshape(shape),
-        pymunk=reference.outcome.reshape(shape),
-        x_values=job.xs,
-        y_values=job.ys,
-        pymunk_status=reference.status.reshape(shape),
-        pymunk_seconds=seconds,
+        pymunk=reference.outcome,
+        x_values=xs,
+        y_values=ys,
+        pymunk_status=reference.status,
+        pymunk_seconds=reference.seconds,
         dt=dt,
         settings=settings,
+        kernel_status=kernel_status.reshape(shape),
+        kernel_counts={name: kernel_counts[:, k].reshape(shape) for k, name in enumerate(COUNT_COLUMNS)},
     )
+
+
+# --- flat impacts (issue 15) -----------------------------------------------------------------
+
+# pymunk for the flat-impact maps (docs/validation.md, "Flat impacts"): 30 solver passes leave
+# a flat landing of the hexagon with a spin of 1e-3 to 1e-2 rad/s (Gauss-Seidel takes the two
+# contacts in turn), which tilts the die enough by its next landing for the map to change with
+# the step; 100 passes leave below 1e-8 rad/s and a map that no longer changes with step or passes.
+FLAT_SETTINGS = PymunkSettings(iterations=100)
+FLAT_DT = 5e-5  # s; the maps agree with those at dt/2 on 99.8 to 100 % of their pixels
+
+# Name of the kernel's count of impacts solved as simultaneous contacts, once it has one.
+MULTI_CONTACTS = "multi_contacts"
+# Without that count, two kernel impacts closer in time than this (x sqrt(R/g), 37 ns for the
+# Table-I die) make one flat impact: the kernel without a two-contact law applies them in turn.
+FLAT_IMPACT_TIME = 1e-6
+# Two corners whose reach towards a surface differs by less than this (x R) meet it together.
+FLAT_REACH = 1e-9
+
+
+def flat_side_angle(sides, side=0):
+    """Orientation phi0 (rad) with side ``side`` flat below the centre: -pi/2 - pi/n - 2 pi k/n.
+
+    Side k joins corners k and k+1, at phi + 2 pi k/n and phi + 2 pi (k+1)/n; they sit at
+    -pi/2 -+ pi/n, symmetric about the downward vertical, when phi takes this value.
+    """
+    return -0.5 * math.pi - math.pi / sides - 2.0 * math.pi * side / sides
+
+
+# Issue 15's wall case: a pentagon with side 2 vertical (phi0 = 0) thrown at the walls. Thrown
+# to the left fast and high enough, it meets the left wall flat before it meets the table.
+FLAT_WALL_CONFIG = f"""
+[die]
+sides = 5
+circumradius = {0.019 / math.sqrt(2.0)!r}
+[contact]
+model = "rigid"
+beta_normal = 0.3
+beta_tangential = 0.0
+friction = 0.4
+[walls]
+separation = 0.2
+[initial]
+phi0 = 0.0
+vy0 = 0.0
+omega0 = 0.0
+[integrator]
+t_max = 5.0
+[grid]
+x = {{ param = "vx0", min = -1.0, max = 1.0, num = 32 }}
+y = {{ param = "y0", min = 0.02, max = 0.10, num = 32 }}
+"""
+
+# Issue 15's flat landing: a die (the hexagon of the issue by default) dropped flat on side 0
+# without spin and without walls, so that every roll starts with a flat landing.
+FLAT_LANDING_CONFIG = """
+[die]
+sides = {sides}
+circumradius = {circumradius!r}
+[contact]
+model = "rigid"
+beta_normal = 0.5
+beta_tangential = 0.0
+friction = 0.8
+[initial]
+phi0 = {phi0!r}
+vy0 = 0.0
+omega0 = 0.0
+[integrator]
+t_max = 5.0
+[grid]
+x = {{ param = "vx0", min = -1.0, max = 1.0, num = 32 }}
+y = {{ param = "y0", min = 0.02, max = 0.10, num = 32 }}
+"""
+
+
+def flat_wall_config(num=32, overrides=()):
+    """Issue 15's wall map (``FLAT_WALL_CONFIG``) on a num x num grid, then ``overrides``."""
+    return _config_on_grid(FLAT_WALL_CONFIG, "FLAT_WALL_CONFIG", num, overrides)
+
+
+def flat_landing_config(num=32, sides=6, overrides=()):
+    """Issue 15's flat-landing map (``FLAT_LANDING_CONFIG``) for an n-gon dropped flat on side 0.
+
+    Parameters
+    ----------
+    num : int
+        Cells per grid axis.
+    sides : int
+        n; phi0 is :func:`flat_side_angle` (n, 0).
+    overrides : sequence of str
+        ``KEY=VALUE`` overrides as in ``--set``, applied last.
+
+    Returns
+    -------
+    dice_sweep.config.Config
+    """
+    text = FLAT_LANDING_CONFIG.format(sides=sides, circumradius=0.019 / math.sqrt(2.0), phi0=flat_side_angle(sides))
+    return _config_on_grid(text, "FLAT_LANDING_CONFIG", num, overrides)
+
+
+def flat_impact_configs(num=32, overrides=()):
+    """The maps of issue 15's check, by name: the pentagon's wall hits and two flat landings.
+
+    Parameters
+    ----------
+    num : int
+        Cells per grid axis.
+    overrides : sequence of str
+        ``KEY=VALUE`` overrides as in ``--set``, applied to every map.
+
+    Returns
+    -------
+    dict of str to dice_sweep.config.Config
+        ``"wall"`` (:func:`flat_wall_config`), ``"hexagon"`` and ``"square"``
+        (:func:`flat_landing_config` with n = 6 and n = 4).
+    """
+    return {
+        "wall": flat_wall_config(num, overrides),
+        "hexagon": flat_landing_config(num, 6, overrides),
+        "square": flat_landing_config(num, 4, overrides),
+    }
+
+
+def first_contact_is_flat(cfg, states):
+    """Whether the free flight of each state meets its first surface with a side flat against it.
+
+    Geometry only, the same for any contact law: a die without spin keeps its orientation in
+    flight, so its first contact is the surface (table or wall of ``cfg``) that its reach
+    along that surface's normal meets first; it is flat when two corners share that reach
+    (within ``FLAT_REACH`` R).
+
+    Parameters
+    ----------
+    cfg : dice_sweep.config.Config or alike
+        ``die.sides``, ``die.circumradius``, ``world.g``, ``walls.separation``.
+    states : array_like, shape (N, 6)
+        Initial states, columns ``STATE_COLUMNS`` (SI units).
+
+    Returns
+    -------
+    numpy.ndarray of bool, shape (N,)
+        False for a spinning start, and for one that never meets a surface.
+    """
+    states = np.atleast_2d(np.asarray(states, dtype=float))
+    x, y, phi, vx, vy, omega = states.T
+    sides, radius, g = cfg.die.sides, cfg.die.circumradius, cfg.world.g
+    offsets = np.stack([corners(sides, radius, 0.0, 0.0, angle) for angle in phi])  # (N, n, 2)
+    half = math.inf if cfg.walls.separation is None else 0.5 * cfg.walls.separation
+    # each surface: reach of every corner towards it (N, n), and the time the die meets it
+    down = -offsets[:, :, 1]
+    drop = y - down.max(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        times = [(vy + np.sqrt(vy * vy + 2.0 * g * drop)) / g]
+        reaches = [down]
+        for sign in (-1.0, 1.0):  # the left wall, the right wall
+            reach = sign * offsets[:, :, 0]
+            gap = half - sign * x - reach.max(axis=1)
+            times.append(np.where(sign * vx > 0.0, gap / (sign * vx), np.inf))
+            reaches.append(reach)
+    times, reaches = np.stack(times), np.stack(reaches)  # (3, N), (3, N, n)
+    first = np.argmin(times, axis=0)
+    rows = np.arange(len(states))
+    reach = reaches[first, rows]  # (N, n)
+    touching = (reach.max(axis=1)[:, None] - reach <= FLAT_REACH * radius).sum(axis=1)
+    return (touching >= 2) & (omega == 0.0) & np.isfinite(times[first, rows])
+
+
+def kernel_flat_impacts(cfg, comparison):
+    """Pixels whose kernel roll had a flat impact: two corners meeting a surface at once.
+
+    Uses the kernel's ``MULTI_CONTACTS`` count when the kernel has one. Otherwise rolls each
+    pixel again with its path records, and counts two impacts less than ``FLAT_IMPACT_TIME``
+    sqrt(R/g) apart (a kernel that applies two single-corner impulses in turn records both
+    at the same time).
+
+    Parameters
+    ----------
+    cfg : dice_sweep.config.Config
+        The config of ``comparison``.
+    comparison : MapComparison
+        From :func:`compare_with_kernel` on ``cfg``.
+
+    Returns
+    -------
+    mask : numpy.ndarray of bool, shape (ny, nx)
+    criterion : str
+        Which of the two criteria gave the mask.
+    """
+    if MULTI_CONTACTS in comparison.kernel_counts:
+        return comparison.kernel_counts[MULTI_CONTACTS] > 0, f"the kernel's {MULTI_CONTACTS} count > 0"
+    from dice_sweep.physics.kernel import EVENT_IMPACT, REC_EVENT, REC_KIND, REC_T, SEG_SLIDE
+    from dice_sweep.roll import roll_config
+
+    tolerance = FLAT_IMPACT_TIME * math.sqrt(cfg.die.circumradius / cfg.world.g)
+    _, _, states = grid_states(cfg)
+    flat = np.zeros(len(states), bool)
+    for index, state in enumerate(states):
+        records = roll_config(cfg, state).records
+        # impact rows, but not the end of a slide on a side (recorded as an impact too)
+        after_slide = np.r_[False, records[:-1, REC_KIND] == SEG_SLIDE]
+        times = records[(records[:, REC_EVENT] == EVENT_IMPACT) & ~after_slide, REC_T]
+        flat[index] = bool((np.diff(times) <= tolerance).any())
+    criterion = f"two kernel impacts within {tolerance * 1e9:.0f} ns (the kernel has no {MULTI_CONTACTS} count)"
+    return flat.reshape(comparison.kernel.shape), criterion
