@@ -375,15 +375,8 @@ class MapComparison:
         return self.agreement_on(None if width is None else settled_mask(self.kernel, width))
 
     def agreement_on(self, mask=None):
-        """Share of pixels with the same side among those of ``mask`` (bool (ny, nx); None: all).
-
-        Returns
-        -------
-        share : float
-            In [0, 1]; NaN when the mask is empty.
-        count : int
-            Pixels compared.
-        """
+        """(share, count) of pixels with the same side among those of ``mask`` (bool (ny, nx);
+        None: all), as :func:`map_agreement` gives them."""
         return map_agreement(self.kernel, self.pymunk, mask)
 
     def rolls_per_second(self):
@@ -548,60 +541,25 @@ def flat_side_angle(sides, side=0):
     return -0.5 * math.pi - math.pi / sides - 2.0 * math.pi * side / sides
 
 
-# Issue 15's wall case: a pentagon with side 2 vertical (phi0 = 0) thrown at the walls. Thrown
-# to the left fast and high enough, it meets the left wall flat before it meets the table.
-FLAT_WALL_CONFIG = f"""
-[die]
-sides = 5
-circumradius = {0.019 / math.sqrt(2.0)!r}
-[contact]
-model = "rigid"
-beta_normal = 0.3
-beta_tangential = 0.0
-friction = 0.4
-[walls]
-separation = 0.2
-[initial]
-phi0 = 0.0
-vy0 = 0.0
-omega0 = 0.0
-[integrator]
-t_max = 5.0
-[grid]
-x = {{ param = "vx0", min = -1.0, max = 1.0, num = 32 }}
-y = {{ param = "y0", min = 0.02, max = 0.10, num = 32 }}
-"""
-
-# Issue 15's flat landing: a die (the hexagon of the issue by default) dropped flat on side 0
-# without spin and without walls, so that every roll starts with a flat landing.
-FLAT_LANDING_CONFIG = """
-[die]
-sides = {sides}
-circumradius = {circumradius!r}
-[contact]
-model = "rigid"
-beta_normal = 0.5
-beta_tangential = 0.0
-friction = 0.8
-[initial]
-phi0 = {phi0!r}
-vy0 = 0.0
-omega0 = 0.0
-[integrator]
-t_max = 5.0
-[grid]
-x = {{ param = "vx0", min = -1.0, max = 1.0, num = 32 }}
-y = {{ param = "y0", min = 0.02, max = 0.10, num = 32 }}
-"""
+# Issue 15's maps: issue 4's set-up thrown sideways without spin, y0 against vx0.
+_FLAT_GRID = ("grid.x.param=vx0", "grid.x.min=-1.0", "grid.x.max=1.0", "grid.y.max=0.10", "initial.omega0=0.0")
+# The wall case: a pentagon with side 2 vertical (phi0 = 0) thrown at the walls. Thrown to the
+# left fast and high enough, it meets the left wall flat before it meets the table.
+FLAT_WALL = ("die.sides=5", "contact.beta_normal=0.3", "contact.friction=0.4", "walls.separation=0.2")
+# The flat landing: a die (the hexagon of the issue by default) dropped flat on side 0 without
+# walls, so that every roll starts with a flat landing.
+FLAT_LANDING = ("contact.beta_normal=0.5", "contact.friction=0.8")
 
 
 def flat_wall_config(num=32, overrides=()):
-    """Issue 15's wall map (``FLAT_WALL_CONFIG``) on a num x num grid, then ``overrides``."""
-    return _config_on_grid(FLAT_WALL_CONFIG, "FLAT_WALL_CONFIG", num, overrides)
+    """Issue 15's wall map (``FLAT_WALL`` over issue 4's config) on a num x num grid, then
+    ``overrides``."""
+    return _config_on_grid(COMPARISON_CONFIG, "FLAT_WALL", num, (*_FLAT_GRID, *FLAT_WALL, *overrides))
 
 
 def flat_landing_config(num=32, sides=6, overrides=()):
-    """Issue 15's flat-landing map (``FLAT_LANDING_CONFIG``) for an n-gon dropped flat on side 0.
+    """Issue 15's flat-landing map (``FLAT_LANDING`` over issue 4's config) for an n-gon
+    dropped flat on side 0.
 
     Parameters
     ----------
@@ -616,26 +574,14 @@ def flat_landing_config(num=32, sides=6, overrides=()):
     -------
     dice_sweep.config.Config
     """
-    text = FLAT_LANDING_CONFIG.format(sides=sides, circumradius=0.019 / math.sqrt(2.0), phi0=flat_side_angle(sides))
-    return _config_on_grid(text, "FLAT_LANDING_CONFIG", num, overrides)
+    shape = (f"die.sides={sides}", f"initial.phi0={flat_side_angle(sides)!r}")
+    return _config_on_grid(COMPARISON_CONFIG, "FLAT_LANDING", num, (*_FLAT_GRID, *FLAT_LANDING, *shape, *overrides))
 
 
 def flat_impact_configs(num=32, overrides=()):
-    """The maps of issue 15's check, by name: the pentagon's wall hits and two flat landings.
-
-    Parameters
-    ----------
-    num : int
-        Cells per grid axis.
-    overrides : sequence of str
-        ``KEY=VALUE`` overrides as in ``--set``, applied to every map.
-
-    Returns
-    -------
-    dict of str to dice_sweep.config.Config
-        ``"wall"`` (:func:`flat_wall_config`), ``"hexagon"`` and ``"square"``
-        (:func:`flat_landing_config` with n = 6 and n = 4).
-    """
+    """The maps of issue 15's check on num x num grids, ``overrides`` (``--set`` style) applied
+    to each: ``"wall"`` (:func:`flat_wall_config`), ``"hexagon"`` and ``"square"``
+    (:func:`flat_landing_config` with n = 6 and n = 4)."""
     return {
         "wall": flat_wall_config(num, overrides),
         "hexagon": flat_landing_config(num, 6, overrides),
