@@ -315,6 +315,64 @@ def diagnose(data, config_path, rate, angle, json_path, md_path, png_dir, quiet)
                f"({report['after']['multiple_of_floor']:.1f} x the noise floor {report['noise_floor'] * 1000:.3f} mm)")
 
 
+def _parse_noise(ctx, param, text):
+    from dice_sweep.measured.simulate import parse_noise
+
+    return parse_noise(text)
+
+
+def _parse_ranges(ctx, param, texts):
+    from dice_sweep.measured.simulate import parse_range
+
+    return dict(parse_range(text) for text in texts)
+
+
+def _number(kind, allowed):
+    """A callback reading an option as int or float, with a one-line error (click's own is
+    three lines); the library checks the range."""
+    def convert(ctx, param, text):
+        try:
+            return kind(text)
+        except ValueError:
+            what = "a whole number" if kind is int else "a number"
+            raise DiceSweepError(f"{max(param.opts, key=len)}: {text!r} is not {what} (allowed: {allowed})") from None
+    return convert
+
+
+@main.command(name="simulate-drops")
+@click.argument("config")
+@click.option("-o", "--output", "out_path", required=True, metavar="OUT.csv", help="Track file to write (.csv or .csv.gz); the provenance goes to OUT.csv.json.")
+@click.option("--tracks", required=True, callback=_number(int, "1 to 100000"), metavar="N", help="Number of drops, 1 to 100000.")
+@click.option("--seed", default="0", show_default=True, callback=_number(int, "a whole number >= 0"), metavar="S", help="Seed of every random draw (>= 0): the same seed gives the same file.")
+@click.option("--rate", default="250", show_default=True, callback=_number(float, "> 0 Hz"), metavar="HZ", help="Frame rate of the file's clock.")
+@click.option("--noise", default="2e-4,2e-4,5.236e-3", show_default=True, callback=_parse_noise, metavar="SX,SY,SPHI", help="Gaussian noise sigmas of x, y (m) and phi (rad).")
+@click.option("--drop-prob", default="0.002", show_default=True, callback=_number(float, "0 to 0.5"), metavar="P", help="Probability that a frame is dropped (row removed), 0 to 0.5.")
+@click.option("--glitch-prob", default="0.002", show_default=True, callback=_number(float, "0 to 0.5"), metavar="P", help="Probability that a frame is a glitch (pose jumped by R), 0 to 0.5.")
+@click.option("--duration", default="1.5", show_default=True, callback=_number(float, "> 0 s, up to the config's integrator.t_max"), metavar="S", help="Longest track, s; a track ends 0.2 s after its die comes to rest.")
+@click.option("--initial", "initial", default="drops", show_default=True, metavar="drops|config", help="drops: y0 0.1 to 0.3 m, any phi0, vx0 -0.3 to 0.3 m/s, vy0 -0.5 to 0 m/s, omega0 -10 to 10 rad/s, x0 = 0, each uniform; config: the config's [initial] values.")
+@click.option("--range", "ranges", multiple=True, callback=_parse_ranges, metavar="PARAM=LOW:HIGH", help="Draw one initial value (x0, y0, phi0, vx0, vy0, omega0; SI) uniformly from this range instead (repeatable).")
+@click.option("--renumber", is_flag=True, help="Number the rows left after dropped frames consecutively, as some trackers do (the loader finds the gaps).")
+@_set_option
+def simulate_drops_command(config, out_path, tracks, seed, rate, noise, drop_prob, glitch_prob, duration, initial, ranges, renumber, overrides):
+    """Write SYNTHETIC tracked drops of the die of CONFIG, made by this project's own kernel, to
+    try calibrate, fit and diagnose on or to test a pipeline: the contact law and [effects] of
+    CONFIG in the kernel, its [tracking] effects on the tracker's view, then noise, dropped
+    frames and glitches. The CSV (traj,t,x,y,phi) has no room for a note: OUT.csv.json says
+    that the data are synthetic and holds the config, the seed, the options and the truth.
+    Not an independent test of the model: the loop fits with the same kernel (docs/simulate_drops.md).
+
+    \b
+    Example: dice-sweep simulate-drops configs/square_drops.toml -o drops.csv --tracks 40 --seed 1
+    """
+    _fast_kernel_start()
+    from dice_sweep.measured.simulate import run_simulate_drops
+
+    drops = run_simulate_drops(_load(config, overrides), out_path, tracks, seed=seed, rate=rate, noise=noise,
+                               drop_prob=drop_prob, glitch_prob=glitch_prob, duration=duration, initial=initial,
+                               ranges=ranges, renumber=renumber)
+    click.echo(drops.describe(out_path))
+
+
 @main.command(name="calibrate")
 @click.argument("data", metavar="DATA")
 @_data_options

@@ -1,0 +1,69 @@
+"""Every command of the README's shell blocks runs as written (issue 16), in order, in a
+scratch folder, at a small size: sweeps get a 16 x 16 grid appended (``--set`` overrides
+the config's), shards write under the scratch folder. The set-up block (``make demo``, ``make
+test``) is what runs this test, so it is left out."""
+
+import os
+import re
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+README = ROOT / "README.md"
+SETUP = {"make demo", "make test"}
+SMALL = ["--set", "grid.x.num=16", "--set", "grid.y.num=16"]
+BIN = Path(sys.executable).parent  # the environment running the tests has dice-sweep
+
+
+def readme_commands():
+    """The README's shell commands, comments stripped, in order; the set-up block left out."""
+    commands = []
+    for block in re.findall(r"```sh\n(.*?)```", README.read_text(), re.S):
+        for line in block.splitlines():
+            command = line.split("  #")[0].split(" # ")[0].strip()
+            if command and command not in SETUP:
+                commands.append(command)
+    return commands
+
+
+COMMANDS = readme_commands()
+
+
+def test_the_readme_has_commands_to_run():
+    assert len(COMMANDS) >= 10
+    assert any(c.startswith("dice-sweep sweep") for c in COMMANDS)
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory):
+    path = tmp_path_factory.mktemp("readme")
+    (path / "configs").symlink_to(ROOT / "configs")
+    return path
+
+
+def _small(argv, workdir):
+    """The command at a small size, and the folder to run it in."""
+    if argv[:2] == ["dice-sweep", "sweep"]:
+        return argv + SMALL, workdir
+    if argv[:2] == ["make", "-j2"]:
+        if not (ROOT / ".venv" / ".installed-stamp").exists():
+            pytest.skip("make shards needs the .venv of `make test`")
+        return argv + [f"SHARD_OUT={workdir / 'out'}", "SET=" + " ".join(SMALL)], ROOT
+    return argv, workdir
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_readme_command_runs_as_written(command, workdir):
+    argv = shlex.split(command)
+    if argv[0] == "source":
+        assert argv[1] == ".venv/bin/activate" and (BIN / "dice-sweep").exists()
+        return
+    argv, cwd = _small(argv, workdir)
+    env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}"}
+    done = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, (command, done.stdout[-2000:], done.stderr[-2000:])
+    assert "Traceback" not in done.stderr
