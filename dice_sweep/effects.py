@@ -188,7 +188,7 @@ EFFECTS = (
         "flat_landing", "contact",
         "a second corner arriving within the contact time after the first shares the impact: the two-contact impulse "
         "takes the share 1 - delay / contact_time, the first corner's alone the rest",
-        params=(Param("contact_time", "s", "effects.contact_time", _fixed(0.0, 1e-3), 0.0, (3e-5, 1e-4, 3e-4), 1e-5),),
+        params=(Param("contact_time", "s", "effects.contact_time", _fixed(0.0, 1e-3), 0.0, (1e-4, 3e-4, 9e-4), 1e-5),),
         config_keys=(ConfigKey("effects", "contact_time", 0.0, "s", low=0.0, high=1e-3),),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss, more after landings near flat than after tilted ones",

@@ -16,6 +16,20 @@ What is simulated
   restitution, tangential restitution, Coulomb cap on the cone edge on the target's side, the
   energy rule). Contacts are located by conservative advancement on a lower bound of each
   corner's height, to a height of 1e-12 R, i.e. a time error far below 1e-9 s.
+* Two corners on the table at once (docs/physics.md, "Two contacts at once"): a second corner
+  that approaches and would arrive within ``window`` (s, at its present normal speed) joins the
+  impact. Rigid law: Newton restitution at each contact where it pushes (otherwise the contact
+  must leave at least that fast), one tangential impulse at the midpoint of the pressing corners
+  with the target -beta_t u_t and a cap of friction times the summed normal impulses; of the
+  admissible cases the one leaving the least kinetic energy, the energy rule towards the
+  frictionless one, the frictionless one on a jam. Paper law: one application of eqs 9-13
+  (beta_normal of the faster approach) when the centre approaches and neither corner is left
+  approaching, else the rigid two-contact law. Each case is solved here as a 3 x 3 linear system
+  in the impulses (P_a, P_b, P_t) (``_two_corner_impulse``).
+* The ``flat_landing`` effect (``contact_time`` T): a second corner arriving a delay d after the
+  first, window < d < T (d its height over its approach speed), gives the two-contact impulse
+  the share 1 - d/T and the first corner's single-contact impulse the rest (the velocities are
+  blended); the second corner, if it still approaches, has its own impact when it arrives.
 * Effects of the project's library: quadratic air drag on the COM, a loaded die (COM offset in
   the body frame), speed-dependent normal restitution. Effects outside it: spin damping and a
   Magnus force in flight. Measurement effects: a wrong clock, a wrong length scale and an angle
@@ -24,10 +38,10 @@ What is simulated
 What is not simulated
 ---------------------
 Sustained contact (resting, rocking about a corner, sliding flat) is not simulated. A track
-ends at an impact whose normal approach speed is below ``min_bounce_speed``, at a landing of two
-corners at once, when an impulse would leave the touching corner without a rebound or drive a
-second touching corner into the table, or at ``duration``. Tracks therefore do **not** end with
-the die at rest; they stop while it is still bouncing.
+ends at an impact whose normal approach speed is below ``min_bounce_speed``, when an impulse
+would leave a touching corner (either of two at a flat landing) without a rebound or drive
+another touching corner into the table, or at ``duration``. Tracks therefore do **not** end
+with the die at rest; they stop while it is still bouncing. Walls are not simulated.
 
 Conventions
 -----------
@@ -44,14 +58,20 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
-__all__ = ["Truth", "Path", "simulate_path", "simulate_track", "simulate_drops", "write_csv", "impact", "energy"]
+__all__ = ["Truth", "Path", "simulate_path", "simulate_track", "simulate_drops", "write_csv", "impact", "energy",
+           "kinetic_energy"]
 
 CONTACT_TOL = 1e-12  # of R: an approaching corner this close to the table touches it
-SECOND_CORNER_TOL = 1e-9  # of R: another corner this close at an impact also touches
+SECOND_CORNER_TOL = 1e-9  # of R: another corner this close that an impact drives into the table ends the track
 REBOUND_MIN = 1e-9  # m/s: a touching corner leaving slower than this is sustained contact
 MAX_SEARCH_STEPS = 200_000  # conservative steps in one flight before giving up
 NUMERIC_MAX_STEP = 1e-3  # s: longest conservative step when the acceleration bound is not exact
+APPROACH_SPEED = 1e-9  # of sqrt(g R): a corner approaching slower than this is at rest (joins no impact)
+CASE_SLACK = 1e-12  # of the fastest approach: round-off allowed in the admissibility of a two-contact case
+CASE_CONDITION = 1e12  # a two-contact case whose 3 x 3 system is worse conditioned than this is skipped
+MAX_CONTACT_TIME = 1e-3  # s: the documented range of the window and of the contact time
 
 
 @dataclass(frozen=True)
@@ -68,6 +88,8 @@ class Truth:
     air_drag: float = 0.0  # 1/m, a = -c |v| v on the centre of mass
     com_offset: tuple = (0.0, 0.0)  # m, body frame (corner 0 along +x)
     speed_restitution: float = 0.0  # s/m, beta_normal / (1 + k |u_n|)
+    window: float = 1e-6  # s, [contact] window: contacts arriving within it are one impact
+    contact_time: float = 0.0  # s, the flat_landing effect (0: off)
     # measurement effects (what the tracker reports):
     angle_offset: float = 0.0  # rad, file phi = phi + offset
     time_scale: float = 1.0  # file t = t_true * time_scale (a clock that runs wrong)
@@ -92,6 +114,9 @@ class _Die:
         n, radius = int(truth.sides), float(truth.circumradius)
         if n < 3:
             raise ValueError("a plate needs at least 3 sides")
+        for name in ("window", "contact_time"):
+            if not 0.0 <= getattr(truth, name) <= MAX_CONTACT_TIME:
+                raise ValueError(f"{name} must lie in [0, {MAX_CONTACT_TIME}] s, not {getattr(truth, name)!r}")
         self.n, self.radius = n, radius
         # Smith 2014 eq 25: I = M R^2 (sin^2(pi/n)/6 + cos^2(pi/n)/2) about the geometric centre
         alpha_centre = math.sin(math.pi / n) ** 2 / 6.0 + math.cos(math.pi / n) ** 2 / 2.0
@@ -142,6 +167,12 @@ def energy(truth, com_state):
     die = _Die(truth)
     _, y, _, vx, vy, w = com_state
     return 0.5 * (vx * vx + vy * vy) + 0.5 * die.inertia * w * w + truth.g * y
+
+
+def kinetic_energy(truth, com_state):
+    """Specific kinetic energy (J/kg) of a COM state: translation and rotation about the COM."""
+    die = _Die(truth)
+    return 0.5 * (com_state[3] ** 2 + com_state[4] ** 2) + 0.5 * die.inertia * com_state[5] ** 2
 
 
 # ----------------------------------------------------------------------------------- flight
@@ -313,8 +344,162 @@ def _corner_impulse(die, r, u, beta_n, beta_t, mu):
     return P, {"capped": capped, "clipped": clipped, "dT": dT}
 
 
-def impact(truth, com_state, corner):
-    """The table impact of ``corner`` for a COM state, by the truth's contact law.
+def _kinetic(die, q):
+    """Specific kinetic energy (J/kg) of the velocities q = (vx, vy, omega) of the COM."""
+    return 0.5 * (q[0] * q[0] + q[1] * q[1] + die.inertia * q[2] * q[2])
+
+
+def _two_corner_impulse(die, q, ra, rb, targets, beta_t, mu, frictionless=False):
+    """The rigid two-contact law on the table for corners at ``ra`` and ``rb`` (from the COM).
+
+    Unknowns: the normal impulses P_a, P_b and one tangential impulse P_t (per unit mass) at
+    the midpoint of the pressing corners. A case fixes, per corner, "pushes" (its normal
+    velocity after equals its Newton target) or "no impulse" (P = 0), and for P_t "on its
+    target" (u_t' = -beta_t u_t at the midpoint), "+ edge" (P_t = +mu (P_a + P_b)) or "- edge"
+    (P_t = -mu (P_a + P_b)): three linear equations in (P_a, P_b, P_t). A case is admissible
+    when its normal impulses push, a contact without impulse leaves at least as fast as its
+    target, a tangential impulse on target lies in the cone, and an edge impulse falls short of
+    its target. The admissible case leaving the least kinetic energy is returned.
+
+    Parameters
+    ----------
+    q : ndarray (3,)
+        (vx, vy, omega) of the COM before.
+    targets : (float, float)
+        Newton targets -beta_n u_n of the two corners (m/s).
+    frictionless : bool
+        No tangential impulse at all.
+
+    Returns
+    -------
+    (dq, info) or (None, None)
+        The velocity change of the chosen case and ``{"case": (on_a, on_b, mode), "P": ...}``;
+        None when no case is admissible.
+    """
+    inv_i = 1.0 / die.inertia
+    corners = (np.asarray(ra, float), np.asarray(rb, float))
+
+    def velocity_map(rx, ry, tangential):
+        # velocity along +x (tangential) or +y (normal) of the point (rx, ry): row . (vx, vy, w)
+        return np.array([1.0, 0.0, -ry]) if tangential else np.array([0.0, 1.0, rx])
+
+    normal_rows = [velocity_map(r[0], r[1], False) for r in corners]
+    u_before = np.array([row @ q for row in normal_rows])
+    slack = CASE_SLACK * max(abs(u_before).max(), 1e-300)
+    if frictionless or mu == 0.0:
+        modes = ("none",)
+    elif math.isinf(mu):
+        modes = ("target",)
+    else:
+        modes = ("target", "+edge", "-edge")
+    best = (math.inf, None, None)
+    for on in ((True, True), (True, False), (False, True)):
+        pressing = [r for r, flag in zip(corners, on) if flag]
+        mid = sum(pressing) / len(pressing)
+        t_row = velocity_map(mid[0], mid[1], True)
+        t_target = -beta_t * float(t_row @ q)
+        # impulse -> velocity change: dq = W (P_a n_a + P_b n_b + P_t t), W = diag(1, 1, 1/I)
+        gen = np.column_stack([normal_rows[0], normal_rows[1], t_row]) * np.array([[1.0], [1.0], [inv_i]])
+        for mode in modes:
+            A = np.zeros((3, 3))
+            b = np.zeros(3)
+            for i in range(2):
+                if on[i]:
+                    A[i] = normal_rows[i] @ gen
+                    b[i] = targets[i] - u_before[i]
+                else:
+                    A[i, i] = 1.0
+            if mode == "target":
+                A[2] = t_row @ gen
+                b[2] = t_target - float(t_row @ q)
+            else:
+                sign = {"+edge": 1.0, "-edge": -1.0, "none": 0.0}[mode]
+                A[2] = [-sign * mu * on[0], -sign * mu * on[1], 1.0] if mode != "none" else [0.0, 0.0, 1.0]
+            if np.linalg.cond(A) > CASE_CONDITION:
+                continue
+            P = np.linalg.solve(A, b)
+            dq = gen @ P
+            after = q + dq
+            ok = True
+            for i in range(2):
+                if on[i]:
+                    ok &= P[i] >= -slack
+                else:
+                    ok &= float(normal_rows[i] @ after) >= targets[i] - slack
+            u_t = float(t_row @ after)
+            if mode == "target":
+                ok &= math.isinf(mu) or abs(P[2]) <= mu * (P[0] + P[1]) + slack
+            elif mode == "+edge":
+                ok &= u_t <= t_target + slack
+            elif mode == "-edge":
+                ok &= u_t >= t_target - slack
+            if not ok:
+                continue
+            left = _kinetic(die, after)
+            if left < best[0]:
+                best = (left, dq, {"case": (on[0], on[1], mode), "P": P})
+    return best[1], best[2]
+
+
+def _two_corner_rigid(die, q, ra, rb, targets, beta_t, mu):
+    """The rigid two-contact velocity change with the energy rule (frictionless on a jam).
+
+    Returns (dq, info) with ``capped`` (an edge case), ``clipped`` (energy rule), ``jam``;
+    (None, None) if even the frictionless case has no admissible solution.
+    """
+    free, _ = _two_corner_impulse(die, q, ra, rb, targets, beta_t, mu, frictionless=True)
+    if free is None:
+        return None, None
+    dq, info = _two_corner_impulse(die, q, ra, rb, targets, beta_t, mu)
+    jam = dq is None
+    if jam:
+        dq, info = free, {"case": "frictionless"}
+    gain = lambda lam: _kinetic(die, q + dq + lam * (free - dq)) - _kinetic(die, q)  # noqa: E731
+    clipped = bool(gain(0.0) > 0.0)
+    if clipped:
+        # the gain is convex along the segment and not positive at the frictionless end:
+        # move only as far as needed (its one root in [0, 1])
+        lam = 1.0 if gain(1.0) >= 0.0 else brentq(gain, 0.0, 1.0, xtol=1e-16, rtol=4 * np.finfo(float).eps)
+        dq = dq + lam * (free - dq)
+    info.update(capped=isinstance(info["case"], tuple) and info["case"][2].endswith("edge"), clipped=clipped, jam=jam)
+    return dq, info
+
+
+def _two_corner_impact(truth, die, s, k, j):
+    """The whole two-contact impact of corners ``k`` and ``j`` on a COM state; (new, info) or
+    (None, None) when no case is admissible."""
+    corners = die.corners(s)
+    ra, rb = corners[k], corners[j]
+    q = s[3:].copy()
+    u_n = np.array([q[1] + q[2] * ra[0], q[1] + q[2] * rb[0]])
+    betas = truth.beta_normal / (1.0 + truth.speed_restitution * np.abs(u_n))
+    beta_t = truth.beta_tangential
+    info = {"u_n": float(u_n[0]), "u_n_second": float(u_n[1]), "capped": False, "clipped": False}
+    if truth.contact == "paper" and q[1] < 0.0:
+        # one application of eqs 9, 12, 13: the law does not depend on the corner
+        beta_n = truth.beta_normal / (1.0 + truth.speed_restitution * float(np.abs(u_n).max()))
+        a, R = die.alpha, die.radius
+        vx, vy, w = q
+        q2 = np.array([-((a * beta_t - 1.0) * vx + a * (beta_t + 1.0) * R * w) / (a + 1.0), -beta_n * vy,
+                       -((beta_t + 1.0) * vx - R * w * (a - beta_t)) / (R * (a + 1.0))])
+        if min(q2[1] + q2[2] * ra[0], q2[1] + q2[2] * rb[0]) >= 0.0:
+            new = s.copy()
+            new[3:] = q2
+            info.update(law="paper", beta_n=beta_n)
+            return new, info
+    targets = -betas * np.minimum(u_n, 0.0)
+    dq, extra = _two_corner_rigid(die, q, ra, rb, targets, beta_t, truth.friction)
+    if dq is None:
+        return None, None
+    info.update(extra)
+    info.update(law="rigid" if truth.contact == "rigid" else "fallback", beta_n=float(betas[0]))
+    new = s.copy()
+    new[3:] = q + dq
+    return new, info
+
+
+def impact(truth, com_state, corner, second=None, share=1.0):
+    """The table impact of ``corner`` (and ``second``, if given) for a COM state.
 
     Parameters
     ----------
@@ -323,6 +508,11 @@ def impact(truth, com_state, corner):
         (x, y, phi, vx, vy, omega) of the centre of mass just before the impact.
     corner : int
         Index of the touching corner.
+    second : int or None
+        A second corner that joins the impact (two contacts at once).
+    share : float
+        In (0, 1]: the share of the two-contact impulse (the flat_landing effect); the first
+        corner's single-contact impulse has the rest (the velocities are blended).
 
     Returns
     -------
@@ -330,10 +520,36 @@ def impact(truth, com_state, corner):
         The COM state just after the impact (positions unchanged).
     info : dict
         ``law`` ("paper", "fallback" or "rigid"), ``u_n`` and ``u_n_after`` (the corner's normal
-        velocity, m/s), ``beta_n`` (effective normal restitution), ``capped``, ``clipped``.
+        velocity, m/s), ``beta_n`` (effective normal restitution), ``capped``, ``clipped``,
+        ``dT`` (J/kg); with a second corner also ``contacts`` (2), ``share``, ``u_n_second`` and
+        ``u_n_second_after``; ``contacts`` 1 when there was none or no two-contact case was
+        admissible.
     """
     die = _Die(truth)
     s = np.array(com_state, dtype=float)
+    single, info = _single_impact(truth, die, s, corner)
+    info.update(contacts=1, share=0.0)
+    if second is not None:
+        both, info2 = _two_corner_impact(truth, die, s, corner, second)
+        if both is not None:
+            new = s.copy()
+            new[3:] = share * both[3:] + (1.0 - share) * single[3:] if share < 1.0 else both[3:]
+            if share < 1.0:
+                info2.update(single_law=info["law"], capped=info2["capped"] or info["capped"],
+                             clipped=info2["clipped"] or info["clipped"])
+            info = info2
+            info.update(contacts=2, share=float(share))
+            single = new
+    r = die.corners(single)
+    info["u_n_after"] = float(single[4] + single[5] * r[corner][0])
+    if second is not None:
+        info["u_n_second_after"] = float(single[4] + single[5] * r[second][0])
+    info["dT"] = _kinetic(die, single[3:]) - _kinetic(die, s[3:])
+    return single, info
+
+
+def _single_impact(truth, die, s, corner):
+    """The single-corner table impact of ``corner`` by the truth's contact law: (new, info)."""
     r = die.corners(s)[corner]
     vx, vy, w = s[3], s[4], s[5]
     u = np.array([vx - w * r[1], vy + w * r[0]])  # corner velocity v + omega z x r
@@ -350,7 +566,7 @@ def impact(truth, com_state, corner):
         if un2 >= 0.0:  # the paper's law is defined here: centre approaching, corner released
             new = s.copy()
             new[3:] = vx2, vy2, w2
-            info.update(law="paper", u_n_after=float(un2), dT=energy(truth, new) - energy(truth, s))
+            info.update(law="paper")
             return new, info
     P, extra = _corner_impulse(die, r, u, beta_n, beta_t, truth.friction)
     info.update(extra)
@@ -359,7 +575,6 @@ def impact(truth, com_state, corner):
     new[4] += P[1]
     new[5] += (r[0] * P[1] - r[1] * P[0]) / die.inertia
     info["law"] = "rigid" if truth.contact == "rigid" else "fallback"
-    info["u_n_after"] = float(new[4] + new[5] * r[0])
     return new, info
 
 
@@ -373,12 +588,13 @@ class Path:
     ----------
     flights : list of (t_begin, t_end, _Flight)
     impacts : list of dict
-        Per impact: ``t`` (s), ``corner``, ``before`` and ``after`` (COM states), ``law``,
-        ``u_n``, ``u_n_after``, ``beta_n``, ``capped``, ``clipped``, ``dT``.
+        Per impact: ``t`` (s), ``corner``, ``second`` (a corner that joined it, or None),
+        ``contacts``, ``share``, ``before`` and ``after`` (COM states), ``law``, ``u_n``,
+        ``u_n_after``, ``beta_n``, ``capped``, ``clipped``, ``dT`` (see :func:`impact`).
     t_end : float
         Time at which the path ends (s).
     end : str
-        "duration", "slow_impact", "two_corners", "no_rebound", "second_corner" or "stalled".
+        "duration", "slow_impact", "no_rebound", "second_corner" or "stalled".
     """
 
     def __init__(self, truth):
@@ -399,6 +615,30 @@ class Path:
     def centre_state(self, t):
         """(x, y, phi, vx, vy, omega) of the geometric centre at time ``t`` (s)."""
         return self.die.to_centre(self.com_state(t))
+
+
+def _joining_corner(truth, die, height, speed, k):
+    """The corner that joins the impact of corner ``k``, and its share of the impact.
+
+    Another corner joins when it approaches (faster than APPROACH_SPEED sqrt(g R)) and would
+    reach the table, at its present normal speed, within the window (share 1) or, with the
+    flat_landing effect, after a delay d below the contact time T (share 1 - d/T); of several,
+    the earliest. Returns (None, 0.0) when none does.
+    """
+    slowest = APPROACH_SPEED * math.sqrt(truth.g * die.radius)
+    tol = CONTACT_TOL * die.radius
+    best, delay = None, math.inf
+    for j in range(die.n):
+        if j == k or speed[j] >= -slowest:
+            continue
+        d = max(height[j], 0.0) / -speed[j]
+        if (height[j] <= tol or d <= truth.window or d < truth.contact_time) and d < delay:
+            best, delay = j, d
+    if best is None:
+        return None, 0.0
+    if height[best] <= tol or delay <= truth.window:
+        return best, 1.0
+    return best, 1.0 - delay / truth.contact_time
 
 
 def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
@@ -439,18 +679,16 @@ def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
         if -speed[k] < min_bounce_speed:
             path.end = "slow_impact"
             return path
-        others = [j for j in range(die.n) if j != k and height[j] <= tol2 and speed[j] < 0.0]
-        if others:  # a flat landing: two corners at once is not a single-corner impact
-            path.end = "two_corners"
-            return path
-        after, info = impact(truth, before, k)
-        info.update(t=tc, corner=k, before=before, after=after)
+        j, share = _joining_corner(truth, die, height, speed, k)
+        after, info = impact(truth, before, k, j, share)
+        info.update(t=tc, corner=k, second=j if info["contacts"] == 2 else None, before=before, after=after)
         path.impacts.append(info)
-        if info["u_n_after"] < REBOUND_MIN:
-            path.end = "no_rebound"
+        arrived = info["contacts"] == 2 and share >= 1.0  # the second corner is at the table too
+        if info["u_n_after"] < REBOUND_MIN or (arrived and info["u_n_second_after"] < REBOUND_MIN):
+            path.end = "no_rebound"  # sustained contact: a pivot, or the die lying flat
             return path
         speed_after = after[4] + die.rho * after[5] * np.cos(ang)
-        if any(j != k and height[j] <= tol2 and speed_after[j] < 0.0 for j in range(die.n)):
+        if any(i not in (k, j) and height[i] <= tol2 and speed_after[i] < 0.0 for i in range(die.n)):
             path.end = "second_corner"
             return path
         t, s = tc, after
@@ -493,12 +731,12 @@ def simulate_track(truth, state0, t_end, rate, *, min_bounce_speed=0.05):
 
 def simulate_drops(truth, count, seed, *, rate=500.0, duration=0.5, noise=(2e-4, 4e-3), drop_prob=0.0,
                    glitch_prob=0.0, height=(0.12, 0.17), vx=(-0.8, -0.4), vy=(-2.1, -1.7), spin=(-8.0, 8.0),
-                   min_bounce_speed=0.05):
+                   phi=(-np.pi, np.pi), min_bounce_speed=0.05):
     """Tracked drops as a tracker would report them.
 
     Release states of the geometric centre are drawn first, all at once, from
     ``numpy.random.default_rng(seed)``: x0 uniform in +-0.05 m, y0 in ``height`` (m), phi0 in
-    [-pi, pi), vx0 in ``vx``, vy0 in ``vy`` (m/s), omega0 in ``spin`` (rad/s), in that order
+    ``phi`` (rad), vx0 in ``vx``, vy0 in ``vy`` (m/s), omega0 in ``spin`` (rad/s), in that order
     (columns). Then, per track, with the same generator: the noise, the glitches and the
     dropped frames (always drawn, so the noise does not depend on the probabilities).
 
@@ -521,8 +759,8 @@ def simulate_drops(truth, count, seed, *, rate=500.0, duration=0.5, noise=(2e-4,
     glitch_prob : float
         Probability that a frame is a glitch: its pose jumps by 5-20 mm in a random direction
         and by 0.3-1.0 rad with a random sign, for that frame only.
-    height, vx, vy, spin : (float, float)
-        Ranges of the release state.
+    height, vx, vy, spin, phi : (float, float)
+        Ranges of the release state (phi default [-pi, pi)).
     min_bounce_speed : float
         Impacts slower than this end a track (m/s).
 
@@ -536,7 +774,7 @@ def simulate_drops(truth, count, seed, *, rate=500.0, duration=0.5, noise=(2e-4,
     """
     rng = np.random.default_rng(seed)
     states = np.column_stack([
-        rng.uniform(-0.05, 0.05, count), rng.uniform(*height, count), rng.uniform(-np.pi, np.pi, count),
+        rng.uniform(-0.05, 0.05, count), rng.uniform(*height, count), rng.uniform(*phi, count),
         rng.uniform(*vx, count), rng.uniform(*vy, count), rng.uniform(*spin, count),
     ])
     tracks = []

@@ -1,6 +1,7 @@
 """The loop on tracked drops made by an independent simulator (tests/measured/independent.py,
 which shares no code with the kernel): each library effect alone, none (several splits), two at
-once, two effects outside the library, and 4x the tracking noise.
+once, two effects outside the library, 4x the tracking noise, and flat_landing on drops that
+start near flat (its own starts, so not in LIBRARY_CASES).
 
 The default suite runs a few of these; all of them run with ``make test-measured``
 (``pytest -m slow tests/measured``), minutes on two cores.
@@ -19,10 +20,11 @@ from tests.measured.independent import Truth, simulate_drops, write_csv
 TRACKS = 90
 
 
-def run_loop(tmp_path, truth, declared=DECLARED_RIGID, *, seed=1, noise=NOISE, tracks=TRACKS, split_seed=0, **options):
+def run_loop(tmp_path, truth, declared=DECLARED_RIGID, *, seed=1, noise=NOISE, tracks=TRACKS, split_seed=0, starts=None, **options):
     truth = dict(truth)
     table = truth.pop("table_offset", 0.0)  # the generator's table is at y = 0: the tracker's zero moved here
-    drops = simulate_drops(Truth(**truth), tracks, seed, rate=500.0, noise=noise, drop_prob=0.01, glitch_prob=0.002)
+    drops = simulate_drops(Truth(**truth), tracks, seed, rate=500.0, noise=noise, drop_prob=0.01, glitch_prob=0.002,
+                           **(starts or {}))
     for drop in drops:
         drop["y"] = drop["y"] + table
     path = write_csv(tmp_path / f"drops_{seed}.csv", drops) or tmp_path / f"drops_{seed}.csv"
@@ -123,6 +125,51 @@ def test_two_effects_at_once(tmp_path):
     assert sorted(report["effects_added"]) == ["air_drag", "com_offset"]
     assert report["verdict"] == "explained"
     assert covers(report, "air_drag", 0.8) and covers(report, "com_dx", 0.004)
+
+
+# The flat_landing effect (contact time T) needs landings near flat: a landing tilted by theta
+# has its second corner d = S sin(theta) / v after the first (S = 6 cm, v about 2.4 m/s:
+# d = 0.025 s per rad), and shares the impact only when d < T. With the usual starts (phi
+# uniform, spin up to 8 rad/s) 12 of 577 impacts come within T = 8e-4 s (seed 1). So the drops start
+# within 0.03 rad of a flat side (phi = pi/4 for the square) with spin within +-0.3 rad/s (at
+# most 0.02 rad more over the 0.05 s fall), and T = 8e-4 s, near the upper bound 1e-3 s where
+# the effect is largest, but inside it so that an interval can cover the truth from both sides.
+# On this set (seed 1) 79 of 90 first landings share the impact, at shares from 0.17 to 0.92
+# (10th to 90th percentile); 82 of 493 impacts in all (the later ones are tilted by the spin the
+# blended first landing leaves).
+FLAT_LANDING_TRUTH = dict(TRUTH, contact_time=8e-4)
+FLAT_LANDING_STARTS = {"phi": (math.pi / 4 - 0.03, math.pi / 4 + 0.03), "spin": (-0.3, 0.3)}
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(reason="the loop names nothing (verdict unexplained, 38.5 x the noise floor): the flat_landing candidate's "
+                          "fit from its start values (1e-4, 3e-4, 9e-4 s) ends at contact_time 2.24e-4 s [0, 1e-3] for 8e-4, "
+                          "z = 1.43 below the threshold 2.49, with friction 0.344 taking up part of the effect. With the truth "
+                          "declared the same fit gives 7.99e-4 s [7.91e-4, 8.08e-4] at 0.98 x the floor "
+                          "(test_flat_landing_truth_declared_is_explained): the candidate's fit, started from the model without "
+                          "the effect, stops in a local minimum; not a disagreement between the generator and the kernel. "
+                          "With the earlier start values (3e-5, 1e-4, 3e-4 s) it stopped at 9.76e-5 s and the loop named "
+                          "angle_offset (0.0296 rad) instead")
+def test_flat_landing_contact_time_is_found(tmp_path):
+    report = run_loop(tmp_path, FLAT_LANDING_TRUTH, starts=FLAT_LANDING_STARTS)
+    assert report["effects_added"][:1] == ["flat_landing"], report["rounds"]
+    assert report["verdict"] in ("explained", "improved")
+    assert covers(report, "contact_time", 8e-4), report["params"]["contact_time"]
+
+
+FLAT_LANDING_DECLARED = DECLARED_RIGID.replace("beta_normal = 0.3", "beta_normal = 0.4").replace("friction = 0.5", "friction = 0.3") + (
+    "[effects]\ncontact_time = 8e-4\n")
+
+
+@pytest.mark.slow
+def test_flat_landing_truth_declared_is_explained(tmp_path):
+    # the same drops with the truth declared: the loop's fit of the kernel reproduces the
+    # generator's flat landings (the xfail above is the loop's search, not the physics)
+    report = run_loop(tmp_path, FLAT_LANDING_TRUTH, FLAT_LANDING_DECLARED, starts=FLAT_LANDING_STARTS)
+    assert report["effects_added"] == []
+    assert report["verdict"] == "explained"
+    assert covers(report, "contact_time", 8e-4), report["params"]["contact_time"]
+    assert report["params"]["contact_time"]["value"] == pytest.approx(8e-4, rel=0.02)
 
 
 # magnus 0.1: at 0.05 the fitted model's median track error on this set is 1.48 x the noise
