@@ -56,7 +56,10 @@ chaos: $(STAMP)
 #   make -j2 shards CONFIG=configs/fig10.toml SHARDS=8 SET="--set grid.x.num=1024"
 # gives out/shards/fig10/part-I-of-8.h5 and out/fig10.h5. A shard is written to .partial and
 # renamed only when complete, so an interrupted run is resumed by the same command, and make
-# never takes an incomplete file for a finished one.
+# never takes an incomplete file for a finished one. SET is part of what a part is: the file
+# SET_STAMP holds it and is rewritten only when it changes, so the parts depend on it; a change
+# removes the parts, .partial files and merged file of the previous SET (--resume cannot finish
+# those, and the old merged file would look like the new one).
 CONFIG ?= configs/fig08.toml
 SHARDS ?= 4
 SET ?=
@@ -64,10 +67,21 @@ SHARD_OUT ?= out
 SWEEP_NAME := $(basename $(notdir $(CONFIG)))
 SHARD_DIR := $(SHARD_OUT)/shards/$(SWEEP_NAME)
 SHARD_PARTS := $(foreach i,$(shell seq 0 $$(($(SHARDS) - 1))),$(SHARD_DIR)/part-$(i)-of-$(SHARDS).h5)
+SET_STAMP := $(SHARD_DIR)/set-of-$(SHARDS).txt
+SET_QUOTED := '$(subst ','\'',$(SET))'
 
 shards: $(SHARD_OUT)/$(SWEEP_NAME).h5
 
-$(SHARD_DIR)/part-%-of-$(SHARDS).h5: $(CONFIG) | $(STAMP)
+.PHONY: FORCE
+$(SET_STAMP): FORCE
+	@mkdir -p $(SHARD_DIR)
+	@if [ ! -f $@ ] || [ "$$(cat $@)" != $(SET_QUOTED) ]; then \
+		echo "shards: SET is now $(SET_QUOTED); removing the parts and merged file of any other SET"; \
+		rm -f $(SHARD_DIR)/part-*-of-$(SHARDS).h5 $(SHARD_DIR)/part-*-of-$(SHARDS).h5.partial $(SHARD_OUT)/$(SWEEP_NAME).h5; \
+		printf '%s\n' $(SET_QUOTED) > $@; \
+	fi
+
+$(SHARD_DIR)/part-%-of-$(SHARDS).h5: $(CONFIG) $(SET_STAMP) | $(STAMP)
 	@mkdir -p $(SHARD_DIR)
 	$(BIN)/dice-sweep sweep $(CONFIG) $(SET) -o $@.partial --shard $*/$(SHARDS) --workers 1 --resume --quiet
 	mv $@.partial $@

@@ -31,6 +31,7 @@ import numpy as np
 
 from dice_sweep.config import GRID_PARAMS, PARAM_UNITS
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.outputs import FOLDER, JSON, NPZ, check_outputs
 
 DEFAULT_BOX_SIZE = 5  # pixels per box side for Sb and Sbb, as in Daza et al. 2016
 LOG2 = math.log(2.0)  # Sbb above this proves a fractal boundary (Daza et al. 2016)
@@ -53,6 +54,8 @@ DEFAULT_SAMPLES = 256  # Monte Carlo rolls per point
 DEFAULT_MC_POINTS = 64  # Monte Carlo points per axis, at most
 CONTROLLED_PROBABILITY = 0.9  # a point where one side has at least this probability is "controlled"
 START_DRAWS = 100  # redraws of a Monte Carlo start that put a corner inside a surface
+MAX_SIGMA = 1e300  # --sigma: a larger one overflows the Monte Carlo draws to inf
+MAX_MC_ROLLS = 10_000_000  # Monte Carlo rolls of one control map: their starts are held in memory (~200 B each)
 
 
 # --- outcome fractions --------------------------------------------------------------------
@@ -651,7 +654,7 @@ def parse_sigma(text: str) -> tuple[str, float]:
     Raises
     ------
     DiceSweepError
-        If PARAM is not an initial value or STD is not a finite number >= 0.
+        If PARAM is not an initial value or STD is not a number in [0, MAX_SIGMA].
     """
     param, _, value = text.partition("=")
     param = param.strip()
@@ -659,10 +662,10 @@ def parse_sigma(text: str) -> tuple[str, float]:
         sigma = float(value)
     except ValueError:
         sigma = math.nan
-    if param not in GRID_PARAMS or not (math.isfinite(sigma) and sigma >= 0):
+    if param not in GRID_PARAMS or not 0 <= sigma <= MAX_SIGMA:
         raise DiceSweepError(
             f"--sigma {text!r}: expected PARAM=STD with PARAM one of {', '.join(GRID_PARAMS)} "
-            "and STD >= 0 in its SI unit, e.g. --sigma y0=0.002"
+            f"and 0 <= STD <= {MAX_SIGMA:g} in its SI unit, e.g. --sigma y0=0.002"
         )
     return param, sigma
 
@@ -770,7 +773,9 @@ def _smooth_axis(values, sigma_pixels, axis):
     """Gaussian-weighted sums of ``values`` along ``axis`` (zero outside the map)."""
     if sigma_pixels == 0:
         return values
-    half = int(math.ceil(BLUR_TRUNCATE * sigma_pixels))
+    # offsets beyond the map add only zeros: a kernel wider than the map is cut to it
+    reach = max(values.shape[axis] - 1, 1)
+    half = reach if BLUR_TRUNCATE * sigma_pixels >= reach else int(math.ceil(BLUR_TRUNCATE * sigma_pixels))
     offsets = np.arange(-half, half + 1)
     weights = np.exp(-0.5 * (offsets / sigma_pixels) ** 2)
     weights /= weights.sum()
@@ -931,11 +936,14 @@ def _monte_carlo_control(sweep, sigmas, samples, max_points, seed, workers) -> C
     from dice_sweep.config import parse_config
 
     cfg = parse_config(sweep.config_toml, source=f"{sweep.path}: config_toml")
+    from dice_sweep.sweep import worker_count
+
     xs = sweep.x.values[monte_carlo_indices(len(sweep.x.values), max_points)]
     ys = sweep.y.values[monte_carlo_indices(len(sweep.y.values), max_points)]
-    from dice_sweep.sweep import default_workers
-
-    workers = default_workers() if workers is None else workers
+    if len(xs) * len(ys) * samples > MAX_MC_ROLLS:
+        raise DiceSweepError(f"--samples {samples} at {len(ys)} x {len(xs)} points: {len(xs) * len(ys) * samples} rolls "
+                             f"(allowed: --samples x points at most {MAX_MC_ROLLS}; lower --samples or --points)")
+    workers = worker_count(workers)
     probability = monte_carlo_probabilities(cfg, xs, ys, sigmas, samples, seed=seed, workers=workers)
     return ControlMap(
         "monte_carlo", dict(sigmas), sweep.sides, sweep.x.param, sweep.y.param, xs, ys, probability, samples
@@ -982,6 +990,8 @@ def control_map(
         raise DiceSweepError(f"--method {method!r}: expected one of {', '.join(METHODS)}")
     if samples < 1 or max_points < 1:
         raise DiceSweepError(f"--samples {samples}, --points {max_points}: need at least 1")
+    if seed < 0:
+        raise DiceSweepError(f"--seed: {seed} is outside the allowed range [0, inf) (whole numbers)")
     best = choose_method(sweep, sigmas)
     if method == "blur" and best != "blur":
         raise DiceSweepError(
@@ -1083,9 +1093,8 @@ def write_json(path, data) -> pathlib.Path:
 
 
 def _png_folder(png_dir) -> pathlib.Path:
+    check_outputs(("--png", png_dir, FOLDER))
     folder = pathlib.Path(png_dir)
-    if not folder.parent.is_dir():
-        raise DiceSweepError(f"--png {png_dir}: folder {folder.parent} does not exist")
     folder.mkdir(exist_ok=True)
     return folder
 
@@ -1150,6 +1159,7 @@ def run_measure(path, *, box_size=DEFAULT_BOX_SIZE, json_path=None, png_dir=None
     -------
     ChaosMeasures
     """
+    check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
     sweep = read_complete_sweep(path)
     measures = measure_map(sweep.outcome, sweep.sides, box_size, x_step=_cell_width(sweep.x), y_step=_cell_width(sweep.y))
     if json_path:
@@ -1183,6 +1193,7 @@ def run_control(path, sigmas, *, json_path=None, png_dir=None, npz_path=None, **
     """
     from dice_sweep.plotting import plot_control_map
 
+    check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER), ("--output", npz_path, NPZ))
     sweep = read_complete_sweep(path)
     control = control_map(sweep, sigmas, **options)
     if json_path:

@@ -4,6 +4,7 @@ The only module that imports click. Each command is a few lines over one library
 library modules are imported inside the commands so that ``dice-sweep --help`` starts fast.
 A user error (any :class:`~dice_sweep.errors.DiceSweepError`, or a file that cannot be read or
 written) is printed as one line ``error: ...`` on stderr with exit code 2, never a traceback.
+Every path a command writes is checked before its work (:func:`dice_sweep.outputs.check_outputs`).
 """
 
 import json
@@ -28,15 +29,52 @@ def _exit_code(error):
     return INTERRUPTED_EXIT if interrupted and isinstance(error, interrupted) else USER_ERROR_EXIT
 
 
+def _usage_error(ctx, error):
+    """click's own usage errors (an unknown option, a value of the wrong type, a missing
+    argument) on one line too, instead of click's usage block; exit code 2."""
+    if isinstance(error, getattr(click.exceptions, "NoArgsIsHelpError", ())):
+        raise error  # no arguments at all: click shows the help
+    where = (error.ctx or ctx).command_path
+    click.echo(f"error: {error.format_message().rstrip('.')} (see '{where} --help')", err=True)
+    ctx.exit(error.exit_code)
+
+
 class _Commands(click.Group):
     """A click group that turns user errors into one line on stderr and exit code 2."""
+
+    def parse_args(self, ctx, args):
+        try:
+            return super().parse_args(ctx, args)
+        except click.UsageError as error:
+            _usage_error(ctx, error)
 
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except click.UsageError as error:
+            _usage_error(ctx, error)
         except (DiceSweepError, OSError) as error:
-            click.echo(f"error: {error}", err=True)
+            click.echo(f"error: {' '.join(str(error).split())}", err=True)  # one line, whatever the text
             ctx.exit(_exit_code(error))
+
+
+IMAGE = "image"  # an output that is a picture: any format of dice_sweep.plotting.image_formats()
+
+
+def _check_outputs(*outputs):
+    """dice_sweep.outputs.check_outputs, asking plotting for the image formats only where a
+    picture is written (it imports matplotlib)."""
+    from dice_sweep.outputs import check_outputs
+
+    if any(path and kind == IMAGE for _, path, kind in outputs):
+        from dice_sweep.plotting import image_formats
+
+        outputs = [(option, path, image_formats() if kind == IMAGE else kind) for option, path, kind in outputs]
+    check_outputs(*outputs)
+
+
+def _warn(line):
+    click.echo(f"warning: {line}", err=True)
 
 
 def _fast_kernel_start():
@@ -68,8 +106,20 @@ def _parse_box(ctx, param, text):
 
 def _at_least_one(ctx, param, value):
     if value is not None and value < 1:
-        raise DiceSweepError(f"--{param.name}: {value} is outside the allowed range [1, inf)")
+        raise DiceSweepError(f"{max(param.opts, key=len)}: {value} is outside the allowed range [1, inf)")
     return value
+
+
+def _workers(ctx, param, value):
+    from dice_sweep.sweep import worker_count
+
+    return None if value is None else worker_count(value)
+
+
+def _dpi(ctx, param, value):
+    from dice_sweep.plotting import check_dpi
+
+    return check_dpi(value)
 
 
 def _set_option(command):
@@ -101,6 +151,9 @@ def roll(config, overrides, as_json, png_path, gif_path):
     \b
     Example: dice-sweep roll configs/table1.toml --set initial.omega0=20 --json
     """
+    from dice_sweep.outputs import GIF
+
+    _check_outputs(("--png", png_path, IMAGE), ("--gif", gif_path, GIF))
     _fast_kernel_start()
     cfg = _load(config, overrides)
     from dice_sweep.config import check_initial_clear
@@ -129,13 +182,13 @@ def _describe_roll(report):
 @main.command()
 @click.argument("config")
 @click.option("-o", "--output", "out_path", required=True, metavar="OUT.h5", help="HDF5 file to write.")
-@click.option("--png", "png_path", metavar="OUT.png", help="Also draw the final-state diagram to this PNG.")
-@click.option("--workers", type=int, callback=_at_least_one, help="Worker processes [default: all cores].")
+@click.option("--png", "png_path", metavar="OUT.png", help="Also draw the final-state diagram to this picture (.png, .pdf, .svg, ...).")
+@click.option("--workers", type=int, callback=_workers, help="Worker processes, 1 to 1024 [default: all cores].")
 @click.option("--shard", default="0/1", show_default=True, callback=_parse_shard, metavar="I/N", help="Run only part I of N (0 <= I < N); join the parts with merge.")
 @click.option("--resume", is_flag=True, help="Finish an interrupted OUT.h5 of the same config and shard.")
 @_set_option
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary line.")
-@click.option("--refine", "refine_levels", type=int, metavar="LEVELS", help="Sweep 2^LEVELS times coarser, then refine only where neighbours disagree (docs/chaos.md).")
+@click.option("--refine", "refine_levels", type=int, metavar="LEVELS", help="Sweep 2^LEVELS times coarser, then refine only where neighbours disagree; rolls the full grid instead where refining cannot save rolls, and says which on stderr (docs/chaos.md).")
 @click.option("--executor", default="local", show_default=True, metavar="local|dask", help="Where tiles are computed: forked local workers, or tasks on a dask.distributed cluster (pip install 'dice-sweep[dask]').")
 @click.option("--scheduler", metavar="ADDRESS", help="With --executor dask: the scheduler, e.g. tcp://10.0.0.5:8786 [default: start a local cluster of --workers processes].")
 def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, refine_levels=None, executor="local", scheduler=None):
@@ -149,6 +202,9 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     \b
     Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
     """
+    from dice_sweep.outputs import SWEEP_FILE
+
+    _check_outputs(("--output", out_path, SWEEP_FILE), ("--png", png_path, IMAGE))
     _fast_kernel_start()
     from dice_sweep.sweep import run_sweep
 
@@ -160,7 +216,8 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
 
         if resume or shard != (0, 1) or executor != "local":
             raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")
-        summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=not quiet)
+        summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=not quiet,
+                                    log=None if quiet else lambda line: click.echo(line, err=True))
     else:
         summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=not quiet,
                             executor=executor, scheduler=scheduler)
@@ -169,7 +226,7 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     if png_path:
         from dice_sweep.plotting import plot_outcome_file
 
-        _report_written(plot_outcome_file(out_path, png_path), quiet)
+        _report_written(plot_outcome_file(out_path, png_path, warn=_warn), quiet)
 
 
 def _report_written(path, quiet=False):
@@ -193,18 +250,23 @@ def merge(parts, out_path):
 
 @main.command()
 @click.argument("h5_path", metavar="OUT.h5")
-@click.option("-o", "--output", "png_path", required=True, metavar="OUT.png", help="PNG to write.")
+@click.option("-o", "--output", "png_path", required=True, metavar="OUT.png", help="Picture to write: .png, or any format matplotlib's Agg canvas writes (.pdf, .svg, .jpg, ...).")
 @click.option("--box", callback=_parse_box, metavar="XMIN,XMAX,YMIN,YMAX", help="Draw a zoom rectangle, in the units of the axes.")
-@click.option("--dpi", type=int, default=150, show_default=True, callback=_at_least_one, help="Pixels per inch.")
+@click.option("--dpi", type=int, default=150, show_default=True, callback=_dpi, help="Pixels per inch, 10 to 1000 (the figure is 7 x 5 inches).")
 def plot(h5_path, png_path, box, dpi):
     """Draw the final-state diagram of a sweep file OUT.h5 as a PNG.
+
+    A sweep that is not complete (interrupted, or one shard) is drawn too, with exit code 0:
+    the cells not computed yet are grey, "not computed" on the colour bar, and one warning
+    line on stderr says how many there are.
 
     \b
     Example: dice-sweep plot out/fig09.h5 -o out/fig09.png --box 40,50,0.2,0.25 --dpi 200
     """
     from dice_sweep.plotting import plot_outcome_file
 
-    _report_written(plot_outcome_file(h5_path, png_path, box=box, dpi=dpi))
+    _check_outputs(("--output", png_path, IMAGE))
+    _report_written(plot_outcome_file(h5_path, png_path, box=box, dpi=dpi, warn=_warn))
 
 
 # --- chaos measures and control maps (issue 6, docs/chaos.md) -----------------------------
@@ -239,7 +301,7 @@ def _parse_sigmas(ctx, param, texts):
 @click.option("--samples", type=int, default=256, show_default=True, callback=_at_least_one, help="Monte Carlo rolls per point.")
 @click.option("--points", type=int, default=64, show_default=True, callback=_at_least_one, help="Monte Carlo points per axis, at most.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of the Monte Carlo draws.")
-@click.option("--workers", type=int, callback=_at_least_one, help="Worker processes for Monte Carlo [default: all cores].")
+@click.option("--workers", type=int, callback=_workers, help="Worker processes for Monte Carlo, 1 to 1024 [default: all cores].")
 @click.option("--json", "json_path", metavar="OUT.json", help="Write the summary to this JSON file.")
 @click.option("--png", "png_dir", metavar="DIR", help="Draw control.png (most likely side, its probability, entropy) into this folder.")
 @click.option("-o", "--output", "npz_path", metavar="OUT.npz", help="Save the probability maps as NumPy arrays.")
@@ -388,7 +450,9 @@ def calibrate_command(data, config_path, rate, angle, gaps, json_path, png_path)
     """
     from dice_sweep.measured.calibrate import calibrate
     from dice_sweep.measured.tracks import load_tracks
+    from dice_sweep.outputs import JSON
 
+    _check_outputs(("--json", json_path, JSON), ("--png", png_path, IMAGE))
     cfg = _load(config_path, ())
     trackset = load_tracks(data, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle, gaps=gaps)
     result = calibrate(trackset, cfg)

@@ -68,6 +68,8 @@ PARAM_UNITS = {"x0": "m", "y0": "m", "phi0": "rad", "vx0": "m/s", "vy0": "m/s", 
 TABLE1_CIRCUMRADIUS = 0.019 / math.sqrt(2.0)  # m, Table I: 1.9/sqrt(2) cm
 MAX_SIDES = 1000
 MAX_GRID_NUM = 100_000  # cells per axis; keeps the start check's arrays (and sweeps) finite
+MIN_CIRCUMRADIUS = 1e-9  # m; a smaller die underflows its moment of inertia per R^2 (1e-308 divided by zero)
+MAX_EVENTS = 2**62  # events (fixed_step: steps) of one roll; the kernel counts them in int64
 # a start whose corner reaches this far into a surface still counts as touching it, not inside
 TOUCH_TOLERANCE = 1e-12  # relative to the circumradius
 # Contact window (s): a real die's contact lasts about 1e-4 s (docs/physics.md), and a window
@@ -245,7 +247,7 @@ def _positive(default, unit):
 _SECTION_SPECS = {
     "die": {
         "sides": _Spec(int, 4, low=3, high=MAX_SIDES),
-        "circumradius": _positive(TABLE1_CIRCUMRADIUS, "m"),
+        "circumradius": _Spec(float, TABLE1_CIRCUMRADIUS, low=MIN_CIRCUMRADIUS, unit="m"),
     },
     "contact": {
         "model": _Spec(str, "paper", choices=CONTACT_MODELS),
@@ -269,7 +271,7 @@ _SECTION_SPECS = {
         "method": _Spec(str, "event", choices=INTEGRATOR_METHODS),
         "dt": _positive(0.001, "s"),
         "t_max": _positive(30.0, "s"),
-        "max_events": _Spec(int, 100_000, low=1),
+        "max_events": _Spec(int, 100_000, low=1, high=MAX_EVENTS),
     },
 }
 for _section, _keys in effect_registry.config_key_specs().items():

@@ -5,7 +5,7 @@ Agg canvas, never pyplot), so it keeps no global state and needs no display.
 
 Colours follow Smith 2014: for n = 4 sides 0-3 are red, green, cyan and violet (Fig. 8); for
 any other n a rainbow runs from red (side 0) to violet (side n - 1) (Figs 9, 11); undecided
-rolls (outcome -1) are black.
+rolls (outcome -1) are black; cells of an incomplete sweep not computed yet are grey.
 """
 
 import math
@@ -31,6 +31,7 @@ FOUR_SIDE_COLORS = np.array(
     ]
 )
 UNDECIDED_COLOR = (0.0, 0.0, 0.0, 1.0)
+NOT_COMPUTED_COLOR = (0.6, 0.6, 0.6, 1.0)  # cells of an incomplete sweep; grey is no side's colour
 BOX_COLOR = "white"  # zoom rectangle: absent from every outcome colour table
 MAX_SIDE_LABELS = 24  # colour bar ticks beyond this are thinned to stay legible
 
@@ -41,6 +42,23 @@ ANIMATION_FIGSIZE = (5, 4)
 ANIMATION_DPI = 80
 MAX_ANIMATION_FRAMES = 300
 PATH_POINTS_PER_FRAME = 40  # samples of the centre's path between two drawn outlines
+DPI_RANGE = (10, 1000)  # --dpi; at most 7000 x 5000 pixels (140 MB of RGBA) for OUTCOME_FIGSIZE
+
+
+def image_formats():
+    """File extensions (with the dot) of the pictures a figure can be saved as: the formats
+    of matplotlib's Agg canvas, ``.png`` first, then e.g. ``.pdf``, ``.svg``."""
+    return tuple(f".{name}" for name in sorted(FigureCanvasAgg.get_supported_filetypes(), key=lambda name: (name != "png", name)))
+
+
+def check_dpi(dpi, option="--dpi"):
+    """``dpi`` if it lies in :data:`DPI_RANGE`, else a one-line :class:`DiceSweepError`."""
+    low, high = DPI_RANGE
+    if not low <= dpi <= high:
+        width, height = OUTCOME_FIGSIZE
+        raise DiceSweepError(f"{option}: {dpi} is outside the allowed range [{low}, {high}] "
+                             f"(a {width} x {height} inch figure: at most {width * high} x {height * high} pixels)")
+    return dpi
 
 
 # --- final-state diagrams -------------------------------------------------------------------
@@ -86,7 +104,7 @@ def _cell_extent(values):
     return values[0] - width / 2, values[-1] + width / 2
 
 
-def draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, title=None, *, extent=None):
+def draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, title=None, *, extent=None, computed=None):
     """Draw a final-state diagram on ``ax`` with a colour bar naming the sides.
 
     Parameters
@@ -106,17 +124,27 @@ def draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, t
     extent : tuple of 4 float, optional
         (xmin, xmax, ymin, ymax) covered by the cells; by default inferred from the centres
         (a single cell then gets width 1).
+    computed : array_like of bool, shape (ny, nx), optional
+        False for cells of an incomplete sweep not computed yet: drawn in
+        :data:`NOT_COMPUTED_COLOR`, with a "not computed" entry on the colour bar.
 
     Returns
     -------
     matplotlib.image.AxesImage
         The drawn image; its extent is exactly the outer cell edges.
     """
-    # Colour index -1 (undecided) .. n-1 (sides) maps onto bins centred on the integers.
-    cmap = ListedColormap(np.vstack([UNDECIDED_COLOR, outcome_colors(sides)]))
-    norm = BoundaryNorm(np.arange(-1.5, sides), cmap.N)
+    # Colour index -2 (not computed), -1 (undecided) .. n-1 (sides) maps onto bins centred on
+    # the integers; -2 only when some cell is not computed.
+    outcome = np.asarray(outcome)
+    missing = None if computed is None else ~np.asarray(computed, dtype=bool)
+    first = -2 if missing is not None and missing.any() else -1
+    if first == -2:
+        outcome = np.where(missing, -2, outcome)
+    colors = [NOT_COMPUTED_COLOR, UNDECIDED_COLOR][first + 2:]
+    cmap = ListedColormap(np.vstack([*colors, outcome_colors(sides)]))
+    norm = BoundaryNorm(np.arange(first - 0.5, sides), cmap.N)
     image = ax.imshow(
-        np.asarray(outcome),
+        outcome,
         cmap=cmap,
         norm=norm,
         origin="lower",
@@ -124,11 +152,11 @@ def draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, t
         interpolation="nearest",
         aspect="auto",
     )
-    ticks = np.arange(-1, sides)
-    step = math.ceil(len(ticks) / MAX_SIDE_LABELS)
-    ticks = np.concatenate([ticks[:1], ticks[1::step]])
+    named = {-2: "not computed", -1: "undecided"}
+    sides_shown = np.arange(sides)[:: math.ceil((sides + 1) / MAX_SIDE_LABELS)]
+    ticks = np.concatenate([np.arange(first, 0), sides_shown])
     colorbar = ax.figure.colorbar(image, ax=ax, ticks=ticks)
-    colorbar.ax.set_yticklabels(["undecided"] + [f"side {k}" for k in ticks[1:]])
+    colorbar.ax.set_yticklabels([named.get(k, f"side {k}") for k in ticks])
     colorbar.ax.tick_params(labelsize="small" if sides <= 12 else "x-small")
     ax.set_xlabel(x_label)
     ax.set_ylabel(y_label)
@@ -159,6 +187,17 @@ def parse_box(text):
         box = ()
     if len(box) != 4 or not all(map(math.isfinite, box)) or box[0] >= box[1] or box[2] >= box[3]:
         raise DiceSweepError(f"--box: expected XMIN,XMAX,YMIN,YMAX with XMIN < XMAX and YMIN < YMAX, got {text!r}")
+    return box
+
+
+def check_box(box, extent):
+    """``box`` if it lies inside ``extent`` = (xmin, xmax, ymin, ymax) of the map, edges
+    included; else a one-line :class:`DiceSweepError` naming ``--box`` (a box outside the
+    map was drawn nowhere, without a word)."""
+    xmin, xmax, ymin, ymax = extent
+    if not (xmin <= box[0] and box[1] <= xmax and ymin <= box[2] and box[3] <= ymax):
+        raise DiceSweepError(f"--box: {','.join(f'{v:g}' for v in box)} is not inside the map (allowed: XMIN, XMAX "
+                             f"in [{xmin:g}, {xmax:g}], YMIN, YMAX in [{ymin:g}, {ymax:g}])")
     return box
 
 
@@ -196,7 +235,7 @@ def outcome_title(cfg, complete=True):
 
 
 def outcome_figure(
-    outcome, x_values, y_values, x_label, y_label, sides, *, title=None, box=None, extent=None, dpi=150
+    outcome, x_values, y_values, x_label, y_label, sides, *, title=None, box=None, extent=None, dpi=150, computed=None
 ):
     """A :class:`~matplotlib.figure.Figure` holding one final-state diagram.
 
@@ -206,7 +245,8 @@ def outcome_figure(
     fig = Figure(figsize=OUTCOME_FIGSIZE, dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, title=title, extent=extent)
+    draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, title=title, extent=extent,
+                     computed=computed)
     if box is not None:
         draw_box(ax, box)
     return fig
@@ -219,7 +259,7 @@ def sweep_figure(sweep, *, box=None, dpi=150):
     ----------
     sweep : dice_sweep.storage.SweepData
         Outcome map, axes (values, parameter, unit, range), config text and ``complete`` flag;
-        an incomplete sweep is drawn (cells not run are undecided) and titled so.
+        an incomplete sweep is drawn (cells not run in :data:`NOT_COMPUTED_COLOR`) and titled so.
     box : tuple of 4 float, optional
         Zoom rectangle ``(xmin, xmax, ymin, ymax)`` in the axes' units.
     dpi : float
@@ -231,6 +271,8 @@ def sweep_figure(sweep, *, box=None, dpi=150):
     """
     from dice_sweep.config import parse_config
 
+    if box is not None:
+        check_box(box, sweep.extent)
     cfg = parse_config(sweep.config_toml, source=f"{sweep.path}: config_toml")
     return outcome_figure(
         sweep.outcome,
@@ -239,10 +281,11 @@ def sweep_figure(sweep, *, box=None, dpi=150):
         axis_label(sweep.x.param, sweep.x.unit),
         axis_label(sweep.y.param, sweep.y.unit),
         sweep.sides,
-        title=outcome_title(cfg, sweep.complete),
+        title=outcome_title(cfg, sweep.complete and bool(sweep.computed.all())),
         box=box,
         extent=sweep.extent,
         dpi=dpi,
+        computed=sweep.computed,
     )
 
 
@@ -282,6 +325,7 @@ def plot_comparison(h5_paths, png_path, *, titles=None, dpi=100):
             sweep.sides,
             title=title,
             extent=sweep.extent,
+            computed=sweep.computed,
         )
     fig.savefig(png_path, dpi=dpi)
     return Path(png_path)
@@ -322,7 +366,7 @@ def plot_residual_curves(curves, png_path, *, dpi=100, bin_width=0.008):
     return Path(png_path)
 
 
-def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150):
+def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150, warn=None):
     """Write the final-state diagram of an HDF5 sweep file (docs/hdf5.md) as a PNG.
 
     Parameters
@@ -330,9 +374,13 @@ def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150):
     h5_path : str or pathlib.Path
         Sweep file, complete or not.
     png_path : str or pathlib.Path
-        PNG to write; its size is :data:`OUTCOME_FIGSIZE` times ``dpi`` pixels.
+        Picture to write (any of :func:`image_formats`); its size is :data:`OUTCOME_FIGSIZE`
+        times ``dpi`` pixels.
     box, dpi
-        As in :func:`sweep_figure`.
+        As in :func:`sweep_figure`; ``dpi`` within :data:`DPI_RANGE`.
+    warn : callable, optional
+        Called with one line when some cells are not computed yet (an incomplete sweep or
+        one shard); they are drawn in :data:`NOT_COMPUTED_COLOR` either way.
 
     Returns
     -------
@@ -341,7 +389,13 @@ def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150):
     """
     from dice_sweep.storage import read_sweep  # lazy: drawing a roll needs no h5py
 
-    sweep_figure(read_sweep(h5_path), box=box, dpi=dpi).savefig(png_path, dpi=dpi)
+    check_dpi(dpi)
+    sweep = read_sweep(h5_path)
+    missing = int(np.count_nonzero(~sweep.computed))
+    if missing and warn is not None:
+        warn(f"{h5_path}: {missing} of {sweep.outcome.size} cells not computed yet, drawn grey as 'not computed' "
+             "(finish the sweep with --resume, or merge its shards)")
+    sweep_figure(sweep, box=box, dpi=dpi).savefig(png_path, dpi=dpi)
     return Path(png_path)
 
 
@@ -713,7 +767,8 @@ def plot_refinement(sweep, refine_level, levels, png_path, *, dpi=100):
     fig, (ax_outcome, ax_level) = _panel_figure(2, dpi)
     axes = (sweep.x.values, sweep.y.values, axis_label(sweep.x.param, sweep.x.unit), axis_label(sweep.y.param, sweep.y.unit))
     ny, nx = sweep.outcome.shape
-    draw_outcome_map(ax_outcome, sweep.outcome, *axes, sweep.sides, title=f"refined sweep, {ny} x {nx}", extent=sweep.extent)
+    draw_outcome_map(ax_outcome, sweep.outcome, *axes, sweep.sides, title=f"refined sweep, {ny} x {nx}", extent=sweep.extent,
+                     computed=sweep.computed)
     simulated = np.mean(np.asarray(refine_level) == levels)
     draw_scalar_map(ax_level, refine_level, *axes, label="level (0 = coarsest)", vmin=0, vmax=levels, extent=sweep.extent,
                     title=f"level of each pixel's roll; {100 * simulated:.1f} % rolled at their own centre ({levels})")

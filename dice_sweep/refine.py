@@ -11,6 +11,13 @@ every cell on a boundary at level l was rolled at level l. After level L the map
 pixels rolled at their own centre and ``/refine_level`` says at which level each pixel's value
 was rolled (docs/hdf5.md).
 
+Where boundaries cover most of the map (a chaotic region, or a grid too small for its levels)
+refinement rolls more than the full grid would: every level rolls again the cells the level
+before rolled. Before each level the rolls still to come are estimated from the share of cells
+on a boundary now and its change since the level before (:func:`estimated_rolls`); when the
+estimate reaches the rolls of the full grid, the full grid is rolled instead (every pixel at
+its own centre, as a full sweep) and the sweep says so.
+
 What it can miss: a structure that lies wholly inside a cell of some level whose 8
 neighbours all agree with it at that level, and that touches no boundary seen at a finer
 level (an island smaller than about two cells of that level). docs/chaos.md measures the share of
@@ -32,18 +39,20 @@ from tqdm import tqdm
 from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.physics import COUNT_COLUMNS, STATUS_NAMES
-from dice_sweep.storage import SweepAxis, SweepFile, SweepHeader, rolls_to_maps, write_refinement_maps
+from dice_sweep.outputs import SWEEP_FILE, check_outputs
+from dice_sweep.storage import SweepAxis, SweepHeader, create_whole, exists_error, rolls_to_maps, write_refinement_maps
 from dice_sweep.sweep import (
     DEFAULT_TILE_SHAPE,
     SweepInterrupted,
     SweepJob,
     TileGrid,
     _process_context,
-    default_workers,
+    worker_count,
 )
 
 CHUNK_ROLLS = 4096  # rolls per batch handed to a worker (and per progress-bar step)
 MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse grid
+PRIOR_GROWTH = 0.5  # change of the boundary share per level before two levels are seen: a smooth boundary's halves
 
 
 # --- rolling arbitrary states, in parallel ------------------------------------------------
@@ -182,6 +191,10 @@ class RefinedMaps:
     rolls : int
         Rolls made, all levels together.
     rolls_per_level : tuple of int
+    decision : str
+        One line: refined, or why the full grid was rolled instead.
+    fell_back : bool
+        True if refinement was given up for the full grid (every pixel then at ``levels``).
     """
 
     maps: dict[str, np.ndarray]
@@ -189,6 +202,8 @@ class RefinedMaps:
     levels: int
     rolls: int
     rolls_per_level: tuple[int, ...]
+    decision: str = ""
+    fell_back: bool = False
 
     @property
     def simulated(self) -> np.ndarray:
@@ -201,6 +216,32 @@ class RefinedMaps:
         return 1.0 - self.rolls / self.refine_level.size
 
 
+def estimated_rolls(share: float, previous_share: float | None, cells_next: int, levels_left: int) -> int:
+    """Rolls the levels still to come would take, estimated before the next level.
+
+    The next level rolls the children of the cells now on a boundary (``share`` of this
+    level's cells; a share of its ``cells_next`` cells), more where boundaries run on. The
+    share is taken to change by the same factor per level as from the level before (at most
+    1: boundaries of dimension d cover a share that falls as 2^(d-2) per level), by
+    :data:`PRIOR_GROWTH` before two levels are seen.
+
+    Parameters
+    ----------
+    share, previous_share : float
+        Shares of cells on a boundary at this level and at the level before (None at level 0).
+    cells_next : int
+        Cells of the next level.
+    levels_left : int
+        Levels still to roll, the next one included.
+
+    Returns
+    -------
+    int
+    """
+    growth = PRIOR_GROWTH if not previous_share else min(share / previous_share, 1.0)
+    return int(sum(cells_next * 4**k * min(1.0, share * growth**k) for k in range(levels_left)))
+
+
 def _roll_cells(job: SweepJob, xs, ys, rows, cols, workers, on_chunk) -> dict[str, np.ndarray]:
     """Roll cells (rows[k], cols[k]) of a level with centres xs, ys; 1-D maps by dataset."""
     states = np.empty((len(rows), len(job.base_state)))
@@ -210,8 +251,9 @@ def _roll_cells(job: SweepJob, xs, ys, rows, cols, workers, on_chunk) -> dict[st
     return rolls_to_maps(COUNT_COLUMNS, (len(rows),), *roll_states(job, states, workers, on_chunk))
 
 
-def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None) -> RefinedMaps:
-    """Compute the maps of ``cfg.grid`` by quadtree refinement over ``levels`` levels.
+def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: bool = True, log=None) -> RefinedMaps:
+    """Compute the maps of ``cfg.grid`` by quadtree refinement over ``levels`` levels, or by
+    rolling the full grid once the refinement cannot save rolls (module docstring).
 
     Parameters
     ----------
@@ -223,6 +265,11 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None) -> Refined
         Worker processes for the rolls.
     on_chunk : callable, optional
         Called with the number of rolls of each finished chunk (progress).
+    fallback : bool
+        Roll the full grid instead once the estimated rolls left reach its rolls (False:
+        always refine, e.g. to measure refinement itself).
+    log : callable, optional
+        Called with :attr:`RefinedMaps.decision` as soon as it is made.
 
     Returns
     -------
@@ -230,17 +277,30 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None) -> Refined
     """
     ny0, nx0 = check_levels(cfg, levels)
     grid = cfg.grid
+    full = grid.y.num * grid.x.num
     job = SweepJob.from_config(cfg)
-    rows, cols = np.indices((ny0, nx0)).reshape(2, -1)
-    maps = _roll_cells(
-        job, level_values(grid.x.min, grid.x.max, nx0), level_values(grid.y.min, grid.y.max, ny0),
-        rows, cols, workers, on_chunk,
-    )
-    maps = {name: values.reshape(ny0, nx0) for name, values in maps.items()}
+    maps = _roll_level(job, grid, (ny0, nx0), workers, on_chunk)
     refine_level = np.zeros((ny0, nx0), dtype=np.uint8)
     rolls_per_level = [ny0 * nx0]
+    previous_share = None
     for level in range(1, levels + 1):
-        refine = np.repeat(np.repeat(boundary_cells(maps["outcome"]), 2, axis=0), 2, axis=1)
+        boundary = boundary_cells(maps["outcome"])
+        share = float(boundary.mean())
+        estimate = estimated_rolls(share, previous_share, 4 * boundary.size, levels - level + 1)
+        if fallback and estimate >= full:
+            decision = (
+                f"--refine {levels}: rolled the full {grid.y.num} x {grid.x.num} grid instead, after level {level - 1}: "
+                f"{100 * share:.0f} % of its cells lie on a boundary, so refining would take about {estimate} more "
+                f"rolls, the full grid {full}"
+            )
+            if log is not None:
+                log(decision)
+            maps = _roll_level(job, grid, (grid.y.num, grid.x.num), workers, on_chunk)
+            refine_level = np.full(maps["outcome"].shape, levels, dtype=np.uint8)
+            rolls_per_level += [0] * (levels - level) + [full]
+            return RefinedMaps(maps, refine_level, levels, sum(rolls_per_level), tuple(rolls_per_level), decision, True)
+        previous_share = share
+        refine = np.repeat(np.repeat(boundary, 2, axis=0), 2, axis=1)
         maps = {name: np.repeat(np.repeat(values, 2, axis=0), 2, axis=1) for name, values in maps.items()}
         refine_level = np.repeat(np.repeat(refine_level, 2, axis=0), 2, axis=1)
         xs = level_values(grid.x.min, grid.x.max, refine.shape[1])
@@ -256,7 +316,20 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None) -> Refined
             rolls += len(rows)
             refine = boundary_cells(maps["outcome"]) & (refine_level < level)
         rolls_per_level.append(rolls)
-    return RefinedMaps(maps, refine_level, levels, sum(rolls_per_level), tuple(rolls_per_level))
+    rolls = sum(rolls_per_level)
+    decision = f"--refine {levels}: refined in {rolls} rolls, {100 * rolls / full:.1f} % of the full grid's {full}"
+    if rolls > full:
+        decision += "; more than the full grid, as its coarse levels lie almost all on boundaries: use fewer levels"
+    if log is not None:
+        log(decision)
+    return RefinedMaps(maps, refine_level, levels, rolls, tuple(rolls_per_level), decision)
+
+
+def _roll_level(job: SweepJob, grid, shape, workers, on_chunk) -> dict[str, np.ndarray]:
+    """Every cell of the level of ``shape`` (rows, columns) of ``grid``, rolled at its centre."""
+    rows, cols = np.indices(shape).reshape(2, -1)
+    xs, ys = level_values(grid.x.min, grid.x.max, shape[1]), level_values(grid.y.min, grid.y.max, shape[0])
+    return {name: values.reshape(shape) for name, values in _roll_cells(job, xs, ys, rows, cols, workers, on_chunk).items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -275,6 +348,8 @@ class RefineSummary:
         Pixels rolled at their own centre.
     seconds : float
         Wall time.
+    fell_back : bool
+        True if the full grid was rolled instead of refining.
     """
 
     path: str
@@ -283,13 +358,15 @@ class RefineSummary:
     rolls: int
     simulated: int
     seconds: float
+    fell_back: bool = False
 
     def describe(self) -> str:
         """One line for the user."""
         ny, nx = self.shape
         full = ny * nx
+        how = "--refine {}: the full grid, as refining could not save rolls" if self.fell_back else "refined over {} levels"
         return (
-            f"{self.path} ({ny} x {nx}, refined over {self.levels} levels): {self.rolls} rolls "
+            f"{self.path} ({ny} x {nx}, {how.format(self.levels)}): {self.rolls} rolls "
             f"({100 * self.rolls / full:.1f} % of a full sweep) in {self.seconds:.1f} s, "
             f"{self.simulated} pixels ({100 * self.simulated / full:.1f} %) rolled at their own centre, complete"
         )
@@ -317,7 +394,7 @@ def write_refined(path, cfg, refined: RefinedMaps) -> None:
     """Write refined maps as a complete sweep file (docs/hdf5.md) plus the refinement maps."""
     header = _header(cfg)
     tiles = TileGrid(header.shape, header.tile_shape)
-    with SweepFile.create(path, header, tiles.count) as sweep_file:
+    with create_whole(path, header, tiles.count) as sweep_file:
         for index in range(tiles.count):
             rows, cols = tiles.bounds(index)
             sweep_file.write_tile(index, rows, cols, {name: values[rows, cols] for name, values in refined.maps.items()})
@@ -325,7 +402,8 @@ def write_refined(path, cfg, refined: RefinedMaps) -> None:
         sweep_file.mark_complete()
 
 
-def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None, progress: bool = True) -> RefineSummary:
+def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None, progress: bool = True,
+                      log=None) -> RefineSummary:
     """Sweep ``cfg.grid`` by quadtree refinement and write it to a new HDF5 file.
 
     The file has the layout of a full sweep (docs/hdf5.md) plus ``/simulated`` and
@@ -343,6 +421,9 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
         Worker processes; default all cores this process may use.
     progress : bool
         Show a tqdm bar on stderr (only when stderr is a terminal).
+    log : callable, optional
+        Called with one line when it is decided whether to refine or to roll the full grid
+        (:func:`refine_maps`).
 
     Returns
     -------
@@ -357,18 +438,14 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
     """
     started = time.perf_counter()
     check_levels(cfg, levels)
-    workers = default_workers() if workers is None else int(workers)
-    if workers < 1:
-        raise DiceSweepError(f"--workers {workers}: need at least 1")
+    workers = worker_count(workers)
+    check_outputs(("--output", out_path, SWEEP_FILE))
     if os.path.exists(out_path):
-        raise DiceSweepError(f"{out_path}: exists; remove it or choose another output file (--refine has no --resume)")
-    folder = os.path.dirname(os.path.abspath(out_path))
-    if not os.path.isdir(folder):
-        raise DiceSweepError(f"{out_path}: folder {folder} does not exist")
+        raise exists_error(out_path, "remove it or choose another output file (--refine has no --resume)")
     try:
         with tqdm(unit=" rolls", unit_scale=True, desc=os.path.basename(str(out_path)), file=sys.stderr,
                   disable=not (progress and sys.stderr.isatty())) as bar:
-            refined = refine_maps(cfg, levels, workers=workers, on_chunk=bar.update)
+            refined = refine_maps(cfg, levels, workers=workers, on_chunk=bar.update, log=log and _beside(bar, log))
     except KeyboardInterrupt:
         raise SweepInterrupted(
             f"{out_path}: interrupted; a refined sweep is written only at its end, so nothing was written"
@@ -376,8 +453,16 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
     write_refined(out_path, cfg, refined)
     return RefineSummary(
         str(out_path), refined.refine_level.shape, levels, refined.rolls, int(refined.simulated.sum()),
-        time.perf_counter() - started,
+        time.perf_counter() - started, refined.fell_back,
     )
+
+
+def _beside(bar, log):
+    """``log`` made to print its line above a progress bar on the same terminal."""
+    def write(line):
+        with bar.external_write_mode():
+            log(line)
+    return write
 
 
 def compare_with_full(refined_outcome, full_outcome) -> float:

@@ -8,8 +8,11 @@ tiles it was computing, and ``complete`` turns true only once every tile of the 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime
+import errno
+import os
 import zlib
 from collections.abc import Mapping
 
@@ -152,6 +155,78 @@ class SweepData:
     def extent(self) -> tuple[float, float, float, float]:
         """(xmin, xmax, ymin, ymax) of the image, as matplotlib's ``imshow`` takes it."""
         return (self.x.lo, self.x.hi, self.y.lo, self.y.hi)
+
+
+# --- user errors naming the file ----------------------------------------------------------
+
+SWEEP_FILE_KIND = "allowed: a sweep file written by dice-sweep sweep or merge"
+
+
+def _one_line(error: BaseException) -> str:
+    return " ".join(str(error).split())
+
+
+def _locked(error: OSError) -> bool:
+    # HDF5 locks a file it opens (exclusively for writing): a sweep or merge writing it now
+    return error.errno in (errno.EAGAIN, errno.EWOULDBLOCK) or "unable to lock file" in str(error)
+
+
+def in_use(path) -> bool:
+    """True if another process has ``path`` open for writing (HDF5's file lock): a sweep, a
+    merge or a resume may be running on it."""
+    try:
+        h5py.File(path, "r").close()
+    except OSError as error:
+        return _locked(error)
+    return False
+
+
+def exists_error(path, advice: str) -> DiceSweepError:
+    """The error for an output that exists: ``advice`` (e.g. 'use --resume or remove it'),
+    unless a running process is writing it, which is then said instead."""
+    if in_use(path):
+        return DiceSweepError(f"{path}: exists and is being written by another process (a sweep or merge may be "
+                              "running on it); wait for it to finish, or choose another output file")
+    return DiceSweepError(f"{path}: exists; {advice}")
+
+
+def _open_error(path, error: OSError, writable: bool) -> DiceSweepError:
+    """One line saying why ``path`` cannot be opened as a sweep file, with the advice that fits."""
+    if _locked(error):
+        if writable:  # a reader's lock also keeps a writer out
+            return DiceSweepError(f"{path}: in use by another process (a sweep or merge may be running on it, or a "
+                                  "command reading it); wait for it to finish, then use --resume")
+        return DiceSweepError(f"{path}: in use by another process (a sweep or merge may be running on it); "
+                              "wait for it to finish, or stop it and then finish the file with --resume")
+    if not os.path.exists(path):
+        return DiceSweepError(f"{path}: no such file ({SWEEP_FILE_KIND})")
+    if os.path.isdir(path):
+        return DiceSweepError(f"{path}: is a folder ({SWEEP_FILE_KIND})")
+    if error.errno == errno.EACCES:
+        return DiceSweepError(f"{path}: permission denied")
+    if os.path.getsize(path) == 0:
+        return DiceSweepError(f"{path}: is empty, not a sweep file; if a killed sweep left it, remove it and rerun")
+    if "signature not found" in str(error):
+        return DiceSweepError(f"{path}: not an HDF5 file ({SWEEP_FILE_KIND})")
+    return DiceSweepError(f"{path}: cannot open as HDF5 ({_one_line(error)}); if a killed sweep damaged it, "
+                          "remove it and rerun")
+
+
+@contextlib.contextmanager
+def _naming(path, failure: str, advice: str):
+    """Turn an HDF5 failure inside the block into one line: ``PATH: failure (why)advice``."""
+    try:
+        yield
+    except (OSError, RuntimeError) as error:
+        raise DiceSweepError(f"{path}: {failure} ({_one_line(error)}){advice}") from None
+
+
+def _reading(path, what: str):
+    """Read failures (a damaged chunk, a cut file) as one line naming the file.
+
+    Only a file this process could open is read, so no other process is writing it: the
+    advice to remove it cannot hit a running sweep's file."""
+    return _naming(path, f"cannot read its {what}", ": the file is damaged; remove it and rerun the sweep or merge that wrote it")
 
 
 def _count_dataset(name: str) -> str:
@@ -349,14 +424,16 @@ class SweepFile:
         try:
             h5 = h5py.File(path, "r+" if writable else "r")
         except OSError as error:
-            raise DiceSweepError(
-                f"{path}: cannot open as HDF5 ({error}); if a kill damaged it, remove it and rerun"
-            ) from None
+            raise _open_error(path, error, writable) from None
         try:
-            return cls(h5, _read_header(h5))
+            with _reading(path, "header"):
+                return cls(h5, _read_header(h5))
         except (KeyError, ValueError) as error:
             h5.close()
-            raise DiceSweepError(f"{path}: not a dice_sweep sweep file ({error})") from None
+            raise DiceSweepError(f"{path}: not a dice_sweep sweep file ({_one_line(error)}; {SWEEP_FILE_KIND})") from None
+        except DiceSweepError:
+            h5.close()
+            raise
 
     def close(self) -> None:
         """Flush and close the file."""
@@ -383,11 +460,13 @@ class SweepFile:
 
     def done_tiles(self) -> np.ndarray:
         """bool (n_tiles,): tiles whose data are in the file."""
-        return self._datasets["done_tiles"][...].astype(bool)
+        with _reading(self.path, "/done_tiles"):
+            return self._datasets["done_tiles"][...].astype(bool)
 
     def computed(self) -> np.ndarray:
         """bool (ny, nx): cells whose ``/status`` is not 255 (not computed)."""
-        return self._datasets["status"][...] != NOT_COMPUTED
+        with _reading(self.path, "/status"):
+            return self._datasets["status"][...] != NOT_COMPUTED
 
     # --- data ----------------------------------------------------------------------------
 
@@ -398,16 +477,18 @@ class SweepFile:
         The data go first and the bookkeeping last, then a flush: a kill at any point leaves
         the tile either recorded with its data or not recorded at all.
         """
-        if isinstance(maps, EncodedTile) and self._copies_chunks(rows, cols):
-            for name, chunk_bytes in maps.chunks.items():
-                self._datasets[name].id.write_direct_chunk((rows.start, cols.start), chunk_bytes)
-        else:
-            if isinstance(maps, EncodedTile):
-                maps = decode_tile(maps, self._chunk, self.header.count_columns)
-            for name, values in maps.items():
-                self._datasets[name][rows, cols] = values
-        self._mark_done(tile_index)
-        self._h5.flush()
+        with _naming(self.path, f"cannot write tile {tile_index}", "; the tiles written before it are kept, "
+                     "and the file is not marked complete"):
+            if isinstance(maps, EncodedTile) and self._copies_chunks(rows, cols):
+                for name, chunk_bytes in maps.chunks.items():
+                    self._datasets[name].id.write_direct_chunk((rows.start, cols.start), chunk_bytes)
+            else:
+                if isinstance(maps, EncodedTile):
+                    maps = decode_tile(maps, self._chunk, self.header.count_columns)
+                for name, values in maps.items():
+                    self._datasets[name][rows, cols] = values
+            self._mark_done(tile_index)
+            self._h5.flush()
 
     _ONE = np.ones(1, dtype=np.uint8)
 
@@ -442,7 +523,8 @@ class SweepFile:
     def read_block(self, rows: slice, cols: slice) -> dict[str, np.ndarray]:
         """Stored arrays of a block, by dataset path (the form :meth:`write_tile` takes)."""
         names = _map_datasets(self.header.count_columns)
-        return {name: self._datasets[name][rows, cols] for name in names}
+        with _reading(self.path, "maps"):
+            return {name: self._datasets[name][rows, cols] for name in names}
 
     def mark_complete(self) -> None:
         """Set the ``complete`` attribute (call only when every tile of the shard is done)."""
@@ -454,13 +536,13 @@ class SweepFile:
         h5 = self._h5
         header = self.header
         extra = [name for name in header.count_columns if name != "impacts"]
+        with _reading(self.path, "maps"):
+            maps = {name: h5[name][...] for name in ("outcome", "status", "impacts", "t_decided")}
+            counts = {name: h5[_count_dataset(name)][...] for name in extra}
         return SweepData(
             path=str(self.path),
-            outcome=h5["outcome"][...],
-            status=h5["status"][...],
-            impacts=h5["impacts"][...],
-            t_decided=h5["t_decided"][...],
-            counts={name: h5[_count_dataset(name)][...] for name in extra},
+            **maps,
+            counts=counts,
             x=header.x,
             y=header.y,
             config_toml=header.config_toml,
@@ -471,6 +553,20 @@ class SweepFile:
             dice_sweep_version=header.dice_sweep_version,
             created=self.created,
         )
+
+
+@contextlib.contextmanager
+def create_whole(path, header: SweepHeader, n_tiles: int):
+    """:meth:`SweepFile.create` for a file one call writes whole (a merge, a refined sweep;
+    neither can be resumed): if the block fails, the file is closed and removed, so that no
+    half-written file is left to block or mislead the next run."""
+    sweep_file = SweepFile.create(path, header, n_tiles)
+    try:
+        with sweep_file:
+            yield sweep_file
+    except BaseException:
+        os.unlink(path)
+        raise
 
 
 def _read_axis(dataset: h5py.Dataset) -> SweepAxis:
@@ -553,7 +649,7 @@ def write_refinement_maps(sweep_file: SweepFile, refine_level: np.ndarray, level
 
 def read_refinement_maps(path) -> tuple[np.ndarray, np.ndarray, int] | None:
     """(simulated as bool, refine_level, levels) of a refined sweep file; None for a full sweep."""
-    with SweepFile.open(path) as sweep_file:
+    with SweepFile.open(path) as sweep_file, _reading(path, "refinement maps"):
         h5 = sweep_file._h5
         if SIMULATED not in h5:
             return None

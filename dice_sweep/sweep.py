@@ -29,8 +29,18 @@ from tqdm import tqdm
 
 from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.outputs import SWEEP_FILE, check_outputs
 from dice_sweep.physics import COUNT_COLUMNS, STATE_COLUMNS, STATUS_NAMES, pack_params, roll_batch
-from dice_sweep.storage import SweepAxis, SweepFile, SweepHeader, chunk_shape, encode_tile, rolls_to_maps
+from dice_sweep.storage import (
+    SweepAxis,
+    SweepFile,
+    SweepHeader,
+    chunk_shape,
+    create_whole,
+    encode_tile,
+    exists_error,
+    rolls_to_maps,
+)
 
 DEFAULT_TILE_SHAPE = (64, 64)
 
@@ -489,9 +499,17 @@ def _check_executor(executor: str, scheduler: str | None, workers: int | None) -
         raise DiceSweepError("--workers: not with --scheduler (the dask cluster has its own workers)")
     if scheduler is not None:
         return None
+    return worker_count(workers)
+
+
+MAX_WORKERS = 1024  # worker processes; more would fork one per tile of a large grid
+
+
+def worker_count(workers: int | None) -> int:
+    """``workers``, or :func:`default_workers` for None; a one-line error outside [1, MAX_WORKERS]."""
     workers = default_workers() if workers is None else int(workers)
-    if workers < 1:
-        raise DiceSweepError(f"--workers {workers}: need at least 1")
+    if not 1 <= workers <= MAX_WORKERS:
+        raise DiceSweepError(f"--workers: {workers} is outside the allowed range [1, {MAX_WORKERS}]")
     return workers
 
 
@@ -620,11 +638,10 @@ def run_sweep(
             time.perf_counter() - started, complete, already_complete,
         )
 
+    check_outputs(("--output", path, SWEEP_FILE))  # say so now, not after compiling and forking
     resuming = path.exists()
     if resuming and not resume:
-        raise DiceSweepError(f"{path}: exists; use --resume or remove it")
-    if not path.parent.is_dir():  # say so now, not after compiling and forking
-        raise DiceSweepError(f"{path}: folder {path.parent} does not exist")
+        raise exists_error(path, "use --resume or remove it")
     done = np.zeros(tiles.count, dtype=bool)
     if resuming:
         with SweepFile.open(path) as existing:
@@ -737,14 +754,15 @@ def merge_parts(part_paths: Sequence, out_path) -> SweepSummary:
     if not part_paths:
         raise DiceSweepError("merge: no part files given")
     path = Path(out_path)
+    check_outputs(("--output", path, SWEEP_FILE))
     if path.exists():
-        raise DiceSweepError(f"{path}: exists; remove it or choose another output file")
+        raise exists_error(path, "remove it or choose another output file")
     with contextlib.ExitStack() as stack:
         parts = [stack.enter_context(SweepFile.open(part_path)) for part_path in part_paths]
         _check_parts(parts)
         header = dataclasses.replace(parts[0].header, shard=(0, 1))
         tiles = TileGrid(header.shape, header.tile_shape)
-        with SweepFile.create(path, header, tiles.count) as merged:
+        with create_whole(path, header, tiles.count) as merged:
             for part in parts:
                 for index in tiles.shard_tiles(part.header.shard):
                     bounds = tiles.bounds(index)

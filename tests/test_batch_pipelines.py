@@ -39,7 +39,7 @@ def make(*args):
 def test_make_j_shards_then_merge_equals_one_sweep(reference, tmp_path):
     result = make("-j2", "shards", "CONFIG=configs/fig08.toml", "SHARDS=3", f"SET={SET}", f"SHARD_OUT={tmp_path}")
     assert result.returncode == 0, result.stderr
-    parts = sorted((tmp_path / "shards" / "fig08").iterdir())
+    parts = sorted((tmp_path / "shards" / "fig08").glob("part-*"))
     assert [part.name for part in parts] == [f"part-{i}-of-3.h5" for i in range(3)]
     assert_same_maps(read_sweep(tmp_path / "fig08.h5"), reference)
     again = make("shards", "CONFIG=configs/fig08.toml", "SHARDS=3", f"SET={SET}", f"SHARD_OUT={tmp_path}")
@@ -53,6 +53,23 @@ def test_make_shards_with_a_bad_override_leaves_nothing_that_looks_done(tmp_path
     assert "grid.x.nmu" in result.stderr and "did you mean" in result.stderr
     done = [path.name for path in tmp_path.rglob("*.h5")]
     assert done == []
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_make_shards_follows_a_change_of_set(tmp_path):
+    """Issue 16: `make shards` kept the parts and merged file of the previous SET."""
+    args = ["shards", "CONFIG=configs/fig08.toml", "SHARDS=2", f"SHARD_OUT={tmp_path}"]
+    small = "SET=--set grid.x.num=16 --set grid.y.num=8"
+    assert make(*args, small).returncode == 0
+    stale = tmp_path / "shards" / "fig08" / "part-0-of-2.h5.partial"
+    stale.write_bytes(b"an interrupted part of the previous SET")
+    result = make(*args, "SET=--set grid.x.num=32 --set grid.y.num=8")
+    assert result.returncode == 0, result.stderr
+    assert read_sweep(tmp_path / "fig08.h5").outcome.shape == (8, 32) and not stale.exists()
+    again = make(*args, "SET=--set grid.x.num=32 --set grid.y.num=8")
+    assert again.returncode == 0 and "dice-sweep" not in again.stdout  # the same SET: nothing to do
+    back = make(*args, small)
+    assert back.returncode == 0 and read_sweep(tmp_path / "fig08.h5").outcome.shape == (8, 16)
 
 
 def run_script(name, env, *args):

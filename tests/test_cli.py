@@ -1,6 +1,7 @@
 """Tests of the dice-sweep command line: help texts, one-line errors, option parsing, wiring."""
 
 import json
+import os
 import pathlib
 import subprocess
 import sys
@@ -11,6 +12,9 @@ import pytest
 from click.testing import CliRunner
 
 from dice_sweep import cli
+from tests.test_storage import held_open  # noqa: F401 - a fixture
+
+Path = pathlib.Path
 
 CONFIG_DIR = pathlib.Path(__file__).resolve().parent.parent / "configs"
 TABLE1 = str(CONFIG_DIR / "table1.toml")
@@ -188,9 +192,11 @@ def test_bad_executor_options_are_one_line_errors_and_write_nothing(tmp_path, op
     assert not out.exists()
 
 
-@pytest.mark.parametrize("workers", ["0", "-3"])
+@pytest.mark.parametrize("workers", ["0", "-3", "1025", "abc"])
 def test_bad_workers_is_one_line_error(calls, workers):
-    assert_user_error(run("sweep", DEMO, "-o", "x.h5", "--workers", workers), "--workers", "[1, inf)")
+    assert_user_error(run("sweep", DEMO, "-o", "x.h5", "--workers", workers), "--workers")
+    assert_user_error(run("control", "x.h5", "--sigma", "y0=0.01", "--workers", workers), "--workers")
+    assert calls == []
 
 
 @pytest.mark.parametrize("box", ["1,2,3", "a,b,c,d", "2,1,0,1", "0,1,1,0", "0,1,0,nan", "0,1,0,1,2"])
@@ -199,8 +205,11 @@ def test_bad_box_is_one_line_error(calls, box):
     assert calls == []
 
 
-def test_bad_dpi_is_one_line_error(calls):
-    assert_user_error(run("plot", "x.h5", "-o", "x.png", "--dpi", "0"), "--dpi")
+@pytest.mark.parametrize("dpi", ["0", "9", "1001", "100000"])
+def test_bad_dpi_is_one_line_error(calls, dpi):
+    """--dpi 100000 ended in a MemoryError traceback (issue 16)."""
+    assert_user_error(run("plot", "x.h5", "-o", "x.png", "--dpi", dpi), f"--dpi: {dpi} ", "[10, 1000]")
+    assert calls == []
 
 
 # ---- wiring of the commands to the library ----------------------------------------------------
@@ -214,7 +223,7 @@ def test_sweep_passes_options_to_run_sweep_and_plots(calls):
     assert kwargs == {"workers": 3, "shard": (1, 4), "resume": True, "progress": True,
                       "executor": "local", "scheduler": None}
     assert cfg.grid.x.num == 128 and cfg.source == DEMO
-    assert plot_call == ("plot_outcome_file", ("out.h5", "out.png"), {})
+    assert plot_call == ("plot_outcome_file", ("out.h5", "out.png"), {"warn": cli._warn})
     assert result.stdout.splitlines() == ["summary line", "wrote the.png"]
 
 
@@ -252,7 +261,7 @@ def test_merge_and_plot_pass_their_arguments(calls):
     assert run("plot", "m.h5", "-o", "m.png", "--box", "1,2,0.1,0.2", "--dpi", "80").exit_code == 0
     assert calls == [
         ("merge_parts", (("a.h5", "b.h5"), "m.h5"), {}),
-        ("plot_outcome_file", ("m.h5", "m.png"), {"box": (1.0, 2.0, 0.1, 0.2), "dpi": 80}),
+        ("plot_outcome_file", ("m.h5", "m.png"), {"box": (1.0, 2.0, 0.1, 0.2), "dpi": 80, "warn": cli._warn}),
     ]
 
 
@@ -331,3 +340,208 @@ def test_roll_refuses_an_initial_start_in_the_table_when_a_grid_sweeps_it():
     result = run("roll", CONFIG_DIR / "fig08.toml", "--set", "initial.y0=-1")
     assert_user_error(result, "fig08.toml", "initial.y0", "into the table", "y0 >= ")
     assert result.stdout == ""
+
+
+# ---- bad input of issue 16: checked before the work, nothing written ------------------------
+
+SQUARE = str(CONFIG_DIR / "square_drops.toml")
+SMALL = ["--set", "grid.x.num=8", "--set", "grid.y.num=8"]
+IMAGE_KINDS = "ending in .png, "  # the start of the list of image formats every picture option names
+# Every output of every command: (arguments, "{}" where the output goes and "{tmp}" for the test's
+# folder; the option; a good name of the output's kind, or None for a folder of pictures).
+OUTPUTS = [
+    (["sweep", DEMO, *SMALL, "-o", "{}"], "--output", "s.h5"),
+    (["sweep", DEMO, *SMALL, "-o", "{tmp}/ok.h5", "--png", "{}"], "--png", "s.png"),
+    (["merge", "{tmp}/p0.h5", "{tmp}/p1.h5", "-o", "{}"], "--output", "m.h5"),
+    (["plot", "{tmp}/s.h5", "-o", "{}"], "--output", "p.png"),
+    (["roll", TABLE1, "--png", "{}"], "--png", "r.png"),
+    (["roll", TABLE1, "--gif", "{}"], "--gif", "r.gif"),
+    (["measure", "{tmp}/s.h5", "--json", "{}"], "--json", "m.json"),
+    (["measure", "{tmp}/s.h5", "--png", "{}"], "--png", None),
+    (["control", "{tmp}/s.h5", "--sigma", "y0=0.002", "--json", "{}"], "--json", "c.json"),
+    (["control", "{tmp}/s.h5", "--sigma", "y0=0.002", "--png", "{}"], "--png", None),
+    (["control", "{tmp}/s.h5", "--sigma", "y0=0.002", "-o", "{}"], "--output", "c.npz"),
+    (["calibrate", "{tmp}/d.csv", "--config", SQUARE, "--json", "{}"], "--json", "cal.json"),
+    (["calibrate", "{tmp}/d.csv", "--config", SQUARE, "--png", "{}"], "--png", "cal.png"),
+    (["fit", "{tmp}/d.csv", "--config", SQUARE, "--json", "{}"], "--json", "f.json"),
+    (["fit", "{tmp}/d.csv", "--config", SQUARE, "--png", "{}"], "--png", None),
+    (["diagnose", "{tmp}/d.csv", "--config", SQUARE, "--json", "{}"], "--json", "r.json"),
+    (["diagnose", "{tmp}/d.csv", "--config", SQUARE, "--json", "{tmp}/r.json", "--md", "{}"], "--md", "r.md"),
+    (["diagnose", "{tmp}/d.csv", "--config", SQUARE, "--json", "{tmp}/r.json", "--png", "{}"], "--png", None),
+    (["simulate-drops", SQUARE, "--tracks", "2", "-o", "{}"], "--output", "d.csv"),
+]
+
+
+def bad_output(case, tmp_path, good):
+    """(path, fragment of the error) of an output that cannot be written, made in tmp_path."""
+    name = good or "pictures"
+    if case == "missing folder":
+        return tmp_path / "missing" / name, "folder " + str(tmp_path / "missing") + " does not exist"
+    if case == "under a file":
+        (tmp_path / "file.txt").write_text("a file")
+        return tmp_path / "file.txt" / name, "is a file, not a folder"
+    if case == "folder for a file" and good:
+        (tmp_path / good).mkdir()
+        return tmp_path / good, "is a folder"
+    if case == "folder for a file":  # a folder of pictures given where a file is
+        (tmp_path / name).write_text("a file")
+        return tmp_path / name, "is a file"
+    if case == "wrong extension":
+        return tmp_path / "out.xyz", "wrong file extension"
+    if not Path("/sys").is_dir() or os.access("/sys", os.W_OK) and os.geteuid() != 0:
+        pytest.skip("needs a folder nobody may write to (/sys)")
+    return Path("/sys") / name, "folder /sys cannot be written to"
+
+
+BAD_OUTPUTS = [  # a folder has no extension to be wrong
+    (*output, case) for output in OUTPUTS
+    for case in ("missing folder", "under a file", "folder for a file", "wrong extension", "unwritable folder")
+    if output[2] or case != "wrong extension"
+]
+
+
+@pytest.mark.parametrize(("args", "option", "good", "case"), BAD_OUTPUTS,
+                         ids=[f"{a[0]} {o} {case}" for a, o, _, case in BAD_OUTPUTS])
+def test_every_output_is_checked_before_the_work(tmp_path, args, option, good, case):
+    """Issue 16: `sweep --png /missing/dir/a.png` failed only after the whole sweep, and `plot -o
+    b.xyz` in a ValueError traceback. Each output of each command is refused on one line naming
+    the option and the path, and nothing is written."""
+    path, fragment = bad_output(case, tmp_path, good)
+    before = sorted(tmp_path.rglob("*"))
+    argv = [arg.replace("{}", str(path)).replace("{tmp}", str(tmp_path)) for arg in args]
+    line = assert_user_error(run(*argv), f"{option}: {path}: ", fragment, "(allowed: ")
+    if good and good.endswith(".png"):
+        assert IMAGE_KINDS in line
+    assert sorted(tmp_path.rglob("*")) == before
+
+
+def test_two_outputs_on_one_path_are_refused(tmp_path):
+    same = tmp_path / "same.json"
+    assert_user_error(run("measure", tmp_path / "s.h5", "--json", same, "--png", same), f"--png: {same}: also given to --json")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_picture_formats_are_checked_before_the_sweep(calls, tmp_path):
+    """Issue 16: `sweep CONFIG -o a.h5 --png x.h5` ran the whole sweep, then a ValueError traceback."""
+    assert_user_error(run("sweep", DEMO, "-o", tmp_path / "a.h5", "--png", tmp_path / "x.h5"), "--png", "x.h5", ".png")
+    assert_user_error(run("plot", tmp_path / "f.h5", "-o", tmp_path / "b.xyz"), "--output", "b.xyz", ".svg")
+    assert calls == [] and list(tmp_path.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def inputs(tmp_path_factory):
+    """Inputs for the probes: sweeps of demo.toml at 16 x 16 in tiles of 8 x 8 ("whole", and
+    "half" with only shard 0 of 2 computed); 4 simulated drops ("drops", at 250 Hz), with their
+    times in ns ("ns") and slowed 100 times ("slow")."""
+    from dice_sweep.config import load_config
+    from dice_sweep.sweep import run_sweep
+
+    folder = tmp_path_factory.mktemp("inputs")
+    cfg = load_config(DEMO, ["grid.x.num=16", "grid.y.num=16"])
+    paths = {name: folder / f"{name}.h5" for name in ("whole", "half")}
+    run_sweep(cfg, paths["whole"], workers=1, tile_shape=(8, 8), progress=False)
+    run_sweep(cfg, paths["half"], workers=1, shard=(0, 2), tile_shape=(8, 8), progress=False)
+    paths["drops"] = folder / "drops.csv"
+    assert run("simulate-drops", SQUARE, "-o", paths["drops"], "--tracks", 4).exit_code == 0
+    header, *rows = paths["drops"].read_text().splitlines()
+    for name, scale in (("ns", 1e-9), ("slow", 100.0)):
+        paths[name] = folder / f"{name}.csv"
+        scaled = [",".join([row.split(",")[0], repr(float(row.split(",")[1]) * scale), *row.split(",")[2:]]) for row in rows]
+        paths[name].write_text("\n".join([header, *scaled]) + "\n")
+    return paths
+
+
+@pytest.fixture(scope="module")
+def half_sweep(inputs):
+    return inputs["half"]
+
+
+def test_plot_of_an_incomplete_sweep_warns_on_one_line(half_sweep, tmp_path):
+    """Issue 16: it exited 0 without a word, cells not computed drawn as 'undecided'."""
+    result = run("plot", half_sweep, "-o", tmp_path / "half.png")
+    assert result.exit_code == 0, result.stderr
+    assert result.stderr.splitlines() == [f"warning: {half_sweep}: 128 of 256 cells not computed yet, drawn grey as "
+                                          "'not computed' (finish the sweep with --resume, or merge its shards)"]
+    assert (tmp_path / "half.png").stat().st_size > 0
+    assert "not computed" in run("plot", "--help").stdout
+
+
+def test_plot_of_a_damaged_file_names_it_and_writes_nothing(half_sweep, tmp_path):
+    """Issue 16: a corrupt chunk gave 'error: Can't synchronously read data (...)', no file named."""
+    from tests.test_storage import corrupt_first_chunk
+
+    damaged = tmp_path / "damaged.h5"
+    damaged.write_bytes(half_sweep.read_bytes())
+    corrupt_first_chunk(damaged)
+    assert_user_error(run("plot", damaged, "-o", tmp_path / "d.png"), f"{damaged}: cannot read", "damaged")
+    assert_user_error(run("measure", damaged), f"{damaged}: cannot read")
+    assert not (tmp_path / "d.png").exists()
+
+
+def test_missing_folder_and_running_sweep_files_get_their_own_messages(held_open, tmp_path):
+    """Issue 16: all got 'if a kill damaged it, remove it and rerun', even a running sweep's file."""
+    (tmp_path / "folder.h5").mkdir()
+    assert_user_error(run("plot", tmp_path / "nope.h5", "-o", tmp_path / "p.png"), "nope.h5: no such file")
+    assert_user_error(run("plot", tmp_path / "folder.h5", "-o", tmp_path / "p.png"), "folder.h5: is a folder")
+    running = held_open("r+")
+    for args in (["plot", running, "-o", tmp_path / "p.png"], ["sweep", DEMO, "-o", running, "--resume"],
+                 ["sweep", DEMO, "-o", running], ["merge", tmp_path / "nope.h5", "-o", running]):
+        line = assert_user_error(run(*args), str(running), "a sweep or merge may be running on it")
+        assert "remove" not in line
+    assert not (tmp_path / "p.png").exists()
+
+
+# ---- further bad input found probing every command (issue 16) --------------------------------
+
+# (arguments, with {name} for an input of the `inputs` fixture and {tmp} for the test's folder;
+# fragments of the one error line)
+PROBES = [
+    (["roll", TABLE1, "--bogus"], ["No such option '--bogus'", "'dice-sweep roll --help'"]),
+    (["sweep", DEMO, "-o", "{tmp}/x.h5", "--workers", "abc"], ["'--workers': 'abc' is not a valid integer"]),
+    (["sweep", DEMO, "--workers", "2"], ["Missing option '-o' / '--output'"]),
+    (["bogus"], ["No such command 'bogus'"]),
+    (["roll", TABLE1, "--set", "die.circumradius=1e-308"], ["die.circumradius", "allowed range [1e-09, inf) m"]),
+    (["roll", TABLE1, "--set", "integrator.max_events=99999999999999999999"], ["integrator.max_events", "allowed range [1, "]),
+    (["plot", "{whole}", "-o", "{tmp}/p.png", "--box", "100,200,5,6"], ["--box: 100,200,5,6 is not inside the map", "[0, 60]"]),
+    (["plot", "{whole}", "-o", "{tmp}/.png"], ["--output", "nothing before the extension"]),
+    (["measure", "{whole}", "--box-size", "0"], ["--box-size: 0 is outside the allowed range"]),
+    (["control", "{whole}", "--sigma", "y0=1e308"], ["--sigma 'y0=1e308'", "0 <= STD <= 1e+300"]),
+    (["control", "{whole}", "--sigma", "y0=0.01", "--method", "monte_carlo", "--samples", "100000000000"],
+     ["--samples 100000000000", "at most 10000000"]),
+    (["control", "{whole}", "--sigma", "y0=0.01", "--method", "monte_carlo", "--seed", "-1"], ["--seed: -1", "[0, inf)"]),
+    (["simulate-drops", SQUARE, "-o", "{tmp}/x.csv", "--tracks", "2", "--noise", "1e308,0,0"], ["--noise", "a sigma above 1", ">= 0 and at most 1"]),
+    (["calibrate", "{drops}", "--config", SQUARE, "--rate", "1e9"], ["rate: 1e+09 Hz", "1 to 1e+06 Hz"]),
+    (["calibrate", "{drops}", "--config", SQUARE, "--rate", "1e-300"], ["rate: 1e-300 Hz", "1 to 1e+06 Hz"]),
+    (["calibrate", "{ns}", "--config", SQUARE], ["ns.csv: column 't'", "are the times in s?"]),
+    (["fit", "{slow}", "--config", SQUARE, "--rate", "1e6"], ["slow.csv: trajectory 1", "at most 1e+07 a track"]),
+    (["diagnose", "{tmp}/missing.csv", "--config", SQUARE, "--json", "{tmp}/r.json"], ["missing.csv: file: no such file"]),
+    (["calibrate", "{tmp}", "--config", SQUARE], ["file: is a folder"]),
+]
+
+
+@pytest.mark.parametrize(("args", "fragments"), PROBES, ids=[" ".join(args[:2] + args[-2:]) for args, _ in PROBES])
+def test_probed_bad_input_is_one_line_before_any_work(inputs, tmp_path, args, fragments):
+    """Each of these was a traceback (an OverflowError, ZeroDivisionError, MemoryError,
+    ValueError), several lines of click usage, or silently nothing (a --box off the map, a
+    '.png' written as '.png.png')."""
+    names = {name: str(path) for name, path in inputs.items()}
+    argv = [arg.format(tmp=tmp_path, **names) for arg in args]
+    assert_user_error(run(*argv), *fragments)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_blur_wider_than_the_map_is_the_map_average(inputs):
+    """--sigma y0=1e300 (allowed) was an OverflowError sizing the blur's kernel."""
+    result = run("control", inputs["whole"], "--sigma", "y0=1e300")
+    assert result.exit_code == 0, result.stderr
+    assert "by Gaussian blur of the map; sigma: y0 1e+300 m" in result.stdout
+
+
+def test_simulate_drops_never_replaces_tracked_data(inputs, tmp_path):
+    tracked = tmp_path / "tracked.csv"
+    tracked.write_bytes(inputs["drops"].read_bytes())  # as a tracker wrote it: no sidecar
+    assert_user_error(run("simulate-drops", SQUARE, "-o", tracked, "--tracks", 2), f"--output: {tracked}: exists and was not written")
+    assert tracked.read_bytes() == inputs["drops"].read_bytes() and list(tmp_path.iterdir()) == [tracked]
+    again = tmp_path / "again.csv"
+    for _ in range(2):  # its own output it may write again
+        assert run("simulate-drops", SQUARE, "-o", again, "--tracks", 2).exit_code == 0

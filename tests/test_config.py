@@ -129,8 +129,10 @@ BAD_CONFIGS = [
     ("[die]\nsides = 1001", "die.sides", "allowed range [3, 1000]"),
     ("[die]\nsides = 4.0", "die.sides", "expected an integer, got a float 4.0"),
     ("[die]\nsides = true", "die.sides", "expected an integer, got a boolean"),
-    ("[die]\ncircumradius = 0.0", "die.circumradius", "allowed range (0, inf) m"),
-    ("[die]\ncircumradius = -0.01", "die.circumradius", "allowed range (0, inf) m"),
+    ("[die]\ncircumradius = 0.0", "die.circumradius", "allowed range [1e-09, inf) m"),
+    ("[die]\ncircumradius = -0.01", "die.circumradius", "allowed range [1e-09, inf) m"),
+    # issue 16: a radius whose square underflows was a ZeroDivisionError traceback packing the kernel's parameters
+    ("[die]\ncircumradius = 1e-308", "die.circumradius", "allowed range [1e-09, inf) m"),
     ("[die]\ncircumradius = nan", "die.circumradius", "nan is not a finite number"),
     ("[die]\ncircumradius = \"big\"", "die.circumradius", "expected a number, got a string"),
     ("[initial]\nomega0 = true", "initial.omega0", "expected a number, got a boolean"),
@@ -141,7 +143,9 @@ BAD_CONFIGS = [
     ("[integrator]\nmethod = \"fixed\"", "integrator.method", "did you mean 'fixed_step'?"),
     ("[integrator]\ndt = 0", "integrator.dt", "allowed range (0, inf) s"),
     ("[integrator]\nt_max = -1", "integrator.t_max", "allowed range (0, inf) s"),
-    ("[integrator]\nmax_events = 0", "integrator.max_events", "allowed range [1, inf)"),
+    ("[integrator]\nmax_events = 0", "integrator.max_events", "allowed range [1, 4.61169e+18]"),
+    # issue 16: a count beyond int64 was an OverflowError traceback when the kernel's parameters were packed
+    ("[integrator]\nmax_events = 99999999999999999999", "integrator.max_events", "allowed range [1, 4.61169e+18]"),
     ("[walls]\nseparation = 0.02", "walls.separation", "allowed range (0.0268701, inf) m"),
     ("[walls]\nseparation = 0.0", "walls.separation", "allowed range (0, inf) m"),
     ("[die]\n[die.extra]\na = 1", "die.extra", "unknown key 'extra'"),
@@ -433,3 +437,15 @@ def test_g_has_one_source():
     assert parse_config("[effects]\ngravity = 0.0\n").world.g == 9.81
     error = config_error("[effects]\ngravity = 9.44\n")
     assert error.key == "effects.gravity" and "[world] g" in error.message
+
+
+def test_event_budget_of_a_huge_fixed_step_count_fits_int64():
+    """Issue 16: t_max / dt beyond int64 was an OverflowError traceback when the kernel's
+    parameters were packed (`roll --set integrator.method=fixed_step --set integrator.dt=1e-9
+    --set integrator.t_max=1e12`)."""
+    from dice_sweep.config import MAX_EVENTS
+    from dice_sweep.physics.params import event_budget, pack_params
+
+    cfg = parse_config("[integrator]\nmethod = \"fixed_step\"\nt_max = 1e12\ndt = 1e-9")
+    assert event_budget(cfg.integrator) == MAX_EVENTS
+    pack_params(cfg)

@@ -152,8 +152,11 @@ def test_title_gives_sides_coefficients_walls_and_incompleteness():
     assert title == "n = 5, beta_normal = 0.2, beta_tangential = -0.35, walls 0.2 m apart (incomplete)"
 
 
-def write_sweep_file(path, cfg, outcome, complete):
-    """A sweep file of ``cfg``'s grid holding ``outcome`` in one tile, through dice_sweep.storage."""
+def write_sweep_file(path, cfg, outcome, complete, rows=None):
+    """A sweep file of ``cfg``'s grid holding ``outcome`` in one tile, through dice_sweep.storage;
+    with ``rows``, tiles of that many rows, and only the first tile written."""
+    rows = rows or outcome.shape[0]
+    outcome = outcome[:rows]
     axes = [
         storage.SweepAxis(
             param=axis.param,
@@ -169,7 +172,7 @@ def write_sweep_file(path, cfg, outcome, complete):
         sides=cfg.die.sides,
         x=axes[0],
         y=axes[1],
-        tile_shape=outcome.shape,
+        tile_shape=outcome.shape,  # the first tile
         shard=(0, 1),
         count_columns=("impacts",),
         status_names=("decided",),
@@ -178,8 +181,8 @@ def write_sweep_file(path, cfg, outcome, complete):
     maps = storage.rolls_to_maps(
         header.count_columns, outcome.shape, outcome.ravel(), np.zeros(rolls), np.zeros((rolls, 1)), np.zeros(rolls)
     )
-    with storage.SweepFile.create(path, header, n_tiles=1) as sweep_file:
-        sweep_file.write_tile(0, slice(None), slice(None), maps)
+    with storage.SweepFile.create(path, header, n_tiles=-(-cfg.grid.y.num // rows)) as sweep_file:
+        sweep_file.write_tile(0, slice(0, rows), slice(None), maps)
         if complete:
             sweep_file.mark_complete()
     return path
@@ -224,6 +227,39 @@ def test_plot_outcome_file_writes_png_of_requested_size(tmp_path, dpi):
     assert header[:8] == b"\x89PNG\r\n\x1a\n"
     width, height = int.from_bytes(header[16:20], "big"), int.from_bytes(header[20:24], "big")
     assert (width, height) == tuple(int(inches * dpi) for inches in plotting.OUTCOME_FIGSIZE)
+
+
+def test_cells_not_computed_have_their_own_colour_legend_entry_and_warning(tmp_path):
+    """Issue 16: an incomplete sweep was drawn with its cells not computed in the black of
+    'undecided', and without a word."""
+    half = write_sweep_file(tmp_path / "half.h5", config.parse_config(BLOCK_CONFIG_TOML), BLOCK_OUTCOME, False, rows=10)
+    warnings = []
+    png = plotting.plot_outcome_file(half, tmp_path / "half.png", dpi=60, warn=warnings.append)
+    assert len(warnings) == 1 and warnings[0].startswith(f"{half}: 200 of 400 cells not computed yet")
+    fig = plotting.sweep_figure(storage.read_sweep(half), dpi=60)
+    fig.savefig(png, dpi=60)
+    for x, y, expected in [(15.0, 0.09, plotting.outcome_colors(4)[0]), (45.0, 0.09, plotting.outcome_colors(4)[1]),
+                           (15.0, 0.23, plotting.NOT_COMPUTED_COLOR), (45.0, 0.23, plotting.NOT_COMPUTED_COLOR)]:
+        np.testing.assert_allclose(pixel_at(fig, x, y, png), expected, atol=COLOR_TOLERANCE)
+    labels = [label.get_text() for label in fig.axes[1].get_yticklabels()]
+    assert labels == ["not computed", "undecided", "side 0", "side 1", "side 2", "side 3"]
+    assert fig.axes[0].get_title().endswith("(incomplete)")
+    whole = write_block_sweep(tmp_path / "whole.h5")
+    plotting.plot_outcome_file(whole, tmp_path / "whole.png", dpi=30, warn=warnings.append)
+    assert len(warnings) == 1  # nothing to say about a complete sweep
+
+
+@pytest.mark.parametrize("dpi", [0, 9, 1001, 100000])
+def test_dpi_outside_its_range_is_refused_before_drawing(tmp_path, dpi):
+    """Issue 16: --dpi 100000 ended in a MemoryError traceback."""
+    with pytest.raises(DiceSweepError, match=r"--dpi: .* allowed range \[10, 1000\]"):
+        plotting.plot_outcome_file(write_block_sweep(tmp_path / "sweep.h5"), tmp_path / "map.png", dpi=dpi)
+    assert not (tmp_path / "map.png").exists()
+
+
+def test_image_formats_are_those_of_the_agg_canvas():
+    formats = plotting.image_formats()
+    assert {".png", ".pdf", ".svg", ".jpg"} <= set(formats) and ".h5" not in formats and ".xyz" not in formats
 
 
 def test_plot_roll_draws_die_with_side_zero_in_red(tmp_path):

@@ -11,12 +11,14 @@ from dice_sweep.refine import (
     boundary_cells,
     check_levels,
     compare_with_full,
+    estimated_rolls,
     refine_maps,
     roll_states,
     run_refined_sweep,
 )
 from dice_sweep.storage import read_refinement_maps, read_sweep
 from dice_sweep.sweep import SweepJob, initial_states, run_sweep
+from tests.test_cli import run
 
 
 def fig08(num):
@@ -110,3 +112,41 @@ def test_cli_refine(tmp_path):
         result = runner.invoke(main, ["sweep", "configs/fig08.toml", "-o", str(tmp_path / "x.h5"), *bad,
                                       "--set", "grid.x.num=32", "--set", "grid.y.num=32"])
         assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
+
+
+def test_estimated_rolls_follow_the_boundary_share_and_its_change():
+    # before two levels are seen the share halves per level (a smooth boundary)
+    assert estimated_rolls(1.0, None, 256, 3) == 256 + 1024 * 0.5 + 4096 * 0.25
+    # a share that stays (a chaotic region) stays; one that grows is held at its value, at most 1
+    assert estimated_rolls(0.5, 0.5, 1000, 2) == 500 + 2000
+    assert estimated_rolls(0.8, 0.4, 1000, 2) == 800 + 3200
+    assert estimated_rolls(0.25, 0.5, 1000, 3) == 250 + 500 + 1000
+
+
+def test_refinement_that_cannot_save_rolls_the_full_grid_instead(tmp_path):
+    """Issue 16: fig12 at 64 x 64 with --refine 3 rolled 119.5 % of the full grid, without a word.
+    Its boundaries cover most of every coarse level: the full grid is rolled, and said so."""
+    cfg = load_config("configs/fig12.toml", ["grid.x.num=64", "grid.y.num=64"])
+    lines = []
+    refined = refine_maps(cfg, 3, workers=1, log=lines.append)
+    assert refined.fell_back and refined.simulated.all()
+    assert refined.rolls_per_level == (64, 256, 0, 4096) and refined.rolls < refine_maps(cfg, 3, fallback=False).rolls
+    assert lines == [refined.decision] and "rolled the full 64 x 64 grid instead, after level 1" in lines[0]
+    path = tmp_path / "full.h5"
+    run_sweep(cfg, path, workers=1, progress=False)
+    for name, values in refined.maps.items():
+        stored = read_sweep(path)
+        stored = getattr(stored, name) if "/" not in name else stored.counts[name.split("/")[1]]
+        np.testing.assert_array_equal(values, stored, err_msg=name)
+    result = run("sweep", "configs/fig12.toml", "-o", tmp_path / "r.h5", "--refine", "3",
+                 "--set", "grid.x.num=64", "--set", "grid.y.num=64", "--workers", "1")
+    assert result.exit_code == 0, result.output
+    assert "rolled the full 64 x 64 grid instead" in result.stderr
+    assert "--refine 3: the full grid, as refining could not save rolls" in result.stdout
+
+
+def test_refinement_that_saves_says_so():
+    lines = []
+    refined = refine_maps(fig08(128), 3, log=lines.append)
+    assert not refined.fell_back and lines == [refined.decision]
+    assert lines[0] == f"--refine 3: refined in {refined.rolls} rolls, {100 * refined.rolls / 128**2:.1f} % of the full grid's 16384"

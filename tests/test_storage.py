@@ -2,6 +2,8 @@
 
 import pathlib
 import re
+import subprocess
+import sys
 
 import h5py
 import numpy as np
@@ -15,8 +17,10 @@ from dice_sweep.storage import (
     SweepAxis,
     SweepFile,
     SweepHeader,
+    create_whole,
     decode_tile,
     encode_tile,
+    exists_error,
     read_sweep,
     rolls_to_maps,
 )
@@ -145,13 +149,109 @@ def test_create_refuses_an_existing_file(tmp_path):
 def test_open_refuses_files_that_are_not_sweeps(tmp_path):
     text_file = tmp_path / "notes.h5"
     text_file.write_text("not HDF5")
-    with pytest.raises(DiceSweepError, match="cannot open as HDF5"):
+    with pytest.raises(DiceSweepError, match="not an HDF5 file"):
         read_sweep(text_file)
     other_hdf5 = tmp_path / "other.h5"
     with h5py.File(other_hdf5, "w") as h5:
         h5["data"] = np.zeros(3)
     with pytest.raises(DiceSweepError, match="not a dice_sweep sweep file"):
         read_sweep(other_hdf5)
+
+
+def open_error(path, writable=False):
+    with pytest.raises(DiceSweepError) as caught:
+        SweepFile.open(path, writable=writable)
+    message = str(caught.value)
+    assert message.startswith(f"{path}: ") and "\n" not in message
+    return message
+
+
+def test_a_missing_file_a_folder_and_an_empty_file_each_get_their_own_message(tmp_path):
+    """Issue 16: all three got 'if a kill damaged it, remove it and rerun' (the folder's on two lines)."""
+    assert "no such file" in open_error(tmp_path / "missing.h5")
+    (tmp_path / "folder.h5").mkdir()
+    assert "is a folder" in open_error(tmp_path / "folder.h5")
+    (tmp_path / "empty.h5").write_bytes(b"")
+    assert "is empty" in open_error(tmp_path / "empty.h5")
+    for name in ("missing.h5", "folder.h5"):
+        assert "remove" not in open_error(tmp_path / name)
+
+
+HOLD_OPEN = """
+import sys, time, h5py
+h5 = h5py.File(sys.argv[1], sys.argv[2])
+print("open", flush=True)
+time.sleep(60)
+"""
+
+
+@pytest.fixture
+def held_open(tmp_path):
+    """Open a sweep file in another process (as a running sweep holds its file); yield its path."""
+    path = tmp_path / "running.h5"
+    write_file(path, tiles=[0, 1], complete=False)
+    holders = []
+
+    def hold(mode):
+        holder = subprocess.Popen([sys.executable, "-c", HOLD_OPEN, str(path), mode], stdout=subprocess.PIPE, text=True)
+        holders.append(holder)
+        assert holder.stdout.readline().strip() == "open"
+        return path
+
+    yield hold
+    for holder in holders:
+        holder.kill()
+        holder.wait()
+
+
+def test_a_file_a_running_sweep_writes_is_never_called_damaged(held_open):
+    """Issue 16: a file locked by a running sweep got 'if a kill damaged it, remove it and rerun'."""
+    path = held_open("r+")
+    for writable in (False, True):
+        message = open_error(path, writable)
+        assert "a sweep or merge may be running on it" in message and "remove" not in message
+    message = str(exists_error(path, "use --resume or remove it"))
+    assert "being written by another process" in message and "remove" not in message
+
+
+def test_a_file_another_process_reads_cannot_be_resumed_now(held_open):
+    path = held_open("r")
+    assert read_sweep(path).computed.any()  # readers share the file
+    message = open_error(path, writable=True)
+    assert "wait for it to finish" in message and "remove" not in message
+    assert str(exists_error(path, "remove it")) == f"{path}: exists; remove it"
+
+
+def corrupt_first_chunk(path, dataset="outcome"):
+    with h5py.File(path, "r") as h5:
+        offset = h5[dataset].id.get_chunk_info(0).byte_offset
+    with open(path, "r+b") as file:
+        file.seek(offset + 10)
+        file.write(b"\xff" * 20)
+
+
+def test_a_corrupt_chunk_is_an_error_naming_the_file(tmp_path):
+    """Issue 16: 'error: Can't synchronously read data (filter returned failure during read)'."""
+    path = tmp_path / "sweep.h5"
+    write_file(path)
+    corrupt_first_chunk(path)
+    with pytest.raises(DiceSweepError, match=f"^{re.escape(str(path))}: cannot read its maps .*damaged"):
+        read_sweep(path)
+    with SweepFile.open(path) as sweep_file, pytest.raises(DiceSweepError, match=re.escape(str(path))):
+        sweep_file.read_block(*TILE_BOUNDS[0])
+
+
+def test_a_file_written_whole_is_removed_when_writing_fails_and_no_other_file_is(tmp_path):
+    """A failed merge or refined sweep leaves no half-written file to block or mislead the next run."""
+    path = tmp_path / "merged.h5"
+    with pytest.raises(ZeroDivisionError), create_whole(path, make_header(), n_tiles=4) as sweep_file:
+        sweep_file.write_tile(0, *TILE_BOUNDS[0], tile_maps(0))
+        1 / 0
+    assert not path.exists()
+    path.write_bytes(b"precious")
+    with pytest.raises(DiceSweepError, match="cannot create"), create_whole(path, make_header(), n_tiles=4):
+        pass
+    assert path.read_bytes() == b"precious"
 
 
 def test_reading_example_of_the_docs_runs(tmp_path, monkeypatch, capsys):

@@ -12,6 +12,7 @@ from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.tracks import load_tracks
+from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs
 
 
 def _load(data_path, cfg, rate, angle):
@@ -25,18 +26,6 @@ def parse_effects(text):
     if unknown:
         raise DiceSweepError(f"--effects: unknown effect {unknown[0]!r} (allowed: {', '.join(registry.names())})")
     return names
-
-
-def check_outputs(**paths):
-    """One-line error, before any work, for an output whose folder does not exist."""
-    for option, path in paths.items():
-        if not path:
-            continue
-        folder = Path(path) if option == "png" else Path(path).parent
-        if option == "png" and folder.exists() and not folder.is_dir():
-            raise DiceSweepError(f"--{option}: {path} is a file (allowed: a folder, created if missing)")
-        if option != "png" and not (folder if str(folder) else Path(".")).is_dir():
-            raise DiceSweepError(f"--{option}: {path}: folder {folder} does not exist (allowed: a path in an existing folder)")
 
 
 def _write_atomic(path, text):
@@ -63,7 +52,7 @@ def _jsonable(value):
 def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=None, png_dir=None, seed=0):
     """Fit the declared model plus ``effects`` on the selection tracks (multiple shooting),
     with 95 % bootstrap intervals over tracks, and score it on the confirmation tracks."""
-    check_outputs(json=json_path, png=png_dir)
+    check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
     trackset = _load(data_path, cfg, rate, angle)
     table = loop.table_height(trackset, cfg)
     noise = loop.noise_floor(trackset, cfg, table)
@@ -110,7 +99,7 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
 
 def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md_path=None, png_dir=None, log=None, **options):
     """The whole loop on a data file; writes REPORT.json (Markdown and pictures if asked)."""
-    check_outputs(json=json_path, md=md_path, png=png_dir)
+    check_outputs(("--json", json_path, JSON), ("--md", md_path, MARKDOWN), ("--png", png_dir, FOLDER))
     trackset = _load(data_path, cfg, rate, angle)
     report = loop.diagnose(trackset, cfg, log=log, angle_reading=f"--angle {angle}: {trackset.angle_note}", **options)
     fits = report.pop("_fits")

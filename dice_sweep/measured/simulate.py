@@ -46,6 +46,7 @@ from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.effects import measurement_maps
 from dice_sweep.errors import ConfigError, DiceSweepError
 from dice_sweep.geometry import DOWN, support
+from dice_sweep.outputs import CSV, JSON, check_outputs
 from dice_sweep.physics import STATE_COLUMNS, pack_params
 from dice_sweep.physics.kernel import COUNT_COLUMNS, REC_KIND, REC_T, REC_WIDTH, SEG_END, roll_one, sample_batch
 from dice_sweep.physics.params import FP_TMAX, IP_CONTINUE
@@ -77,6 +78,7 @@ GLITCH_SIZE = 1.0
 REST_TAIL = 0.2  # s of true time kept after a die comes to rest (the loader's rest test needs 0.1)
 MAX_PROB = 0.5  # more than half the frames dropped or glitched is not a tracker
 MAX_TRACKS = 100_000
+MAX_NOISE = 1.0  # --noise sigmas, m, m and rad: a metre of tracking noise on a die is no tracker's
 MIN_FRAMES = 3  # frames in --duration, at least: fewer give the loader no frame rate or motion
 MAX_FRAMES = 5_000_000  # tracks x frames per track, at most (memory: ~200 bytes a frame while simulating)
 # The record buffer inside kernel.sample_batch (rows); tests/measured/test_simulate_drops.py
@@ -108,14 +110,17 @@ def _number(text, option, what):
 
 
 def parse_noise(text):
-    """``SX,SY,SPHI`` (m, m, rad) -> a tuple of three floats >= 0 (one-line error naming --noise)."""
-    allowed = "SX,SY,SPHI: three numbers >= 0, m, m, rad"
+    """``SX,SY,SPHI`` (m, m, rad) -> a tuple of three floats in [0, MAX_NOISE] (one-line error
+    naming --noise)."""
+    allowed = f"SX,SY,SPHI: three numbers >= 0 and at most {MAX_NOISE:g}, m, m, rad"
     parts = [part.strip() for part in str(text).split(",")]
     if len(parts) != 3:
         raise DiceSweepError(f"--noise: {text!r} is not three sigmas (allowed: {allowed})")
     values = tuple(_number(part, "--noise", allowed) for part in parts)
     if min(values) < 0:
         raise DiceSweepError(f"--noise: {text!r} has a negative sigma (allowed: {allowed})")
+    if max(values) > MAX_NOISE:
+        raise DiceSweepError(f"--noise: {text!r} has a sigma above {MAX_NOISE:g} (allowed: {allowed})")
     return values
 
 
@@ -453,7 +458,7 @@ def _replace_atomically(path, write):
 
 
 def _write_data(drops, path, file):
-    if not str(path).endswith(".gz"):
+    if not str(path).lower().endswith(".gz"):
         _write_csv(drops, file)
         return
     # mtime 0 and no name: the same bytes every run
@@ -479,23 +484,26 @@ def write_drops(drops, cfg, path):
     return path
 
 
-def check_output(path):
-    """One-line error, before any work, for an output that is not a .csv / .csv.gz file in an
-    existing folder."""
-    name = str(path)
-    if not (name.endswith(".csv") or name.endswith(".csv.gz")):
-        raise DiceSweepError(f"--output: {name}: not a track file name (allowed: a name ending in .csv or .csv.gz)")
-    folder = Path(name).parent
-    if not folder.is_dir():
-        raise DiceSweepError(f"--output: {name}: folder {folder} does not exist (allowed: a path in an existing folder)")
-    if Path(name).is_dir():
-        raise DiceSweepError(f"--output: {name} is a folder (allowed: a file name ending in .csv or .csv.gz)")
+def _check_not_data(path):
+    """Refuse to replace a track file that simulate-drops did not write (tracked data, say):
+    one it wrote has its sidecar, which says ``"synthetic": true``."""
+    if not Path(path).exists():
+        return
+    try:
+        synthetic = json.loads(sidecar_path(path).read_text(encoding="utf-8")).get("synthetic") is True
+    except (OSError, ValueError, AttributeError):
+        synthetic = False
+    if not synthetic:
+        raise DiceSweepError(f"--output: {path}: exists and was not written by simulate-drops (no {sidecar_path(path).name} "
+                             "saying it is synthetic); remove it or choose another name (allowed: a new file, or one "
+                             "simulate-drops wrote)")
 
 
 def run_simulate_drops(cfg, out_path, tracks, **options):
     """The ``simulate-drops`` command: check everything, simulate, write the CSV and its
     sidecar JSON; returns the :class:`SimulatedDrops` (``describe(out_path)`` for the user)."""
-    check_output(out_path)
+    check_outputs(("--output", out_path, CSV), ("--output", sidecar_path(out_path), JSON))
+    _check_not_data(out_path)
     drops = simulate_drops(cfg, tracks, **options)  # checks every option before any work
     write_drops(drops, cfg, out_path)
     return drops

@@ -38,6 +38,8 @@ __all__ = ["Track", "TrackSet", "load_tracks", "ANGLE_MODES", "GAP_MODES"]
 
 ANGLE_MODES = ("as-is", "auto")
 GAP_MODES = ("auto", "as-is")
+RATE_RANGE = (1.0, 1e6)  # Hz, frame rates of trackers (given or from the times)
+MAX_TRACK_FRAMES = 10_000_000  # frames of one track on its re-timed clock, held in memory
 
 # Glitches: a step whose pose residual (against the local median motion) exceeds this angle
 # times R is a jump. 25 deg is about twice the largest change of the angular step at one impact
@@ -201,6 +203,10 @@ def _read_rows(path):
             numbered = [(reader.line_num, row) for row in reader if row and any(cell.strip() for cell in row)]
     except (UnicodeDecodeError, gzip.BadGzipFile, EOFError, zlib.error, csv.Error) as error:
         raise DiceSweepError(f"{path}: file: not readable as CSV text ({error})") from None
+    except FileNotFoundError:
+        raise DiceSweepError(f"{path}: file: no such file (allowed: a track file, CSV or CSV.gz)") from None
+    except IsADirectoryError:
+        raise DiceSweepError(f"{path}: file: is a folder (allowed: a track file, CSV or CSV.gz)") from None
     if not numbered:
         raise DiceSweepError(f"{path}: file: empty (allowed: a header line, e.g. traj,t,x,y,phi, and data rows)")
     header = [name.strip().lower() for name in numbered[0][1]]
@@ -546,9 +552,15 @@ def _angle_convention(raws, sides, circumradius, path):
 # --- loading -------------------------------------------------------------------------------
 
 
+def _check_rate(path, rate, where="rate: {} Hz is not a frame rate"):
+    low, high = RATE_RANGE
+    if not low <= rate <= high:
+        raise DiceSweepError(f"{path}: {where.format(f'{rate:g}')} (allowed: {low:g} to {high:g} Hz)")
+
+
 def _check_options(path, rate, angle, gaps):
-    if rate is not None and not (math.isfinite(rate) and rate > 0):
-        raise DiceSweepError(f"{path}: rate: {rate} Hz is not a frame rate (allowed: > 0)")
+    if rate is not None:
+        _check_rate(path, rate)
     if angle not in ANGLE_MODES:
         raise DiceSweepError(f"{path}: angle: {angle!r} is not a mode (allowed: {', '.join(ANGLE_MODES)})")
     if gaps not in GAP_MODES:
@@ -622,8 +634,14 @@ def load_tracks(path, *, sides, circumradius, rate=None, angle="as-is", gaps="au
         if steps.size == 0:
             raise DiceSweepError(f"{path}: column '{columns['time']}': one row per trajectory gives no frame rate (allowed: --rate HZ, or two rows or more)")
         rate = 1.0 / float(np.median(steps))
+        _check_rate(path, rate, f"column '{columns['time']}': its median step gives {{}} Hz, not a frame rate (are the times in s?)")
     raws = []
-    for _, rows in groups:
+    for traj_id, rows in groups:
+        frames = (t[rows][-1] - t[rows][0]) * rate + rows.size
+        if frames > MAX_TRACK_FRAMES:
+            raise DiceSweepError(f"{path}: trajectory {traj_id}: {frames:.3g} frames of 1/{rate:g} s over "
+                                 f"{t[rows][-1] - t[rows][0]:g} s (allowed: at most {MAX_TRACK_FRAMES:.0e} a track; "
+                                 "check --rate and that the times are in s)")
         track_angle = columns["angle"][rows]
         if columns["layout"] == "marker":  # atan2 of the dots wraps at pi
             track_angle = _unwrap_finite(track_angle)

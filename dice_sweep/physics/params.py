@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from dice_sweep.config import DEFAULT_CONTACT_WINDOW
+from dice_sweep.config import DEFAULT_CONTACT_WINDOW, MAX_EVENTS
 
 # fpar indices (SI units)
 FP_R = 0  # circumradius, m
@@ -114,6 +114,6 @@ def event_budget(integrator):
     """Events a roll may use: ``max_events``, and for ``fixed_step`` at least one per step
     (t_max / dt), since that scheme applies at most one impact per step and a die settling at a
     small step bounces on nearly every step (fig11 at dt = 1e-6 ran out in 8 of 1024 pixels)."""
-    if integrator.method == "fixed_step":
-        return max(integrator.max_events, int(math.ceil(integrator.t_max / integrator.dt)))
+    if integrator.method == "fixed_step":  # at most MAX_EVENTS: t_max / dt may be beyond int64
+        return max(integrator.max_events, min(math.ceil(integrator.t_max / integrator.dt), MAX_EVENTS))
     return integrator.max_events

@@ -1,0 +1,100 @@
+"""Checks of the files and folders a command will write, made before any work (issue 16).
+
+Every command that writes calls :func:`check_outputs` first, so that a path that cannot be
+written is one line naming the option, the path and what is allowed, before a sweep or a fit
+runs rather than after it. Imports nothing heavy: the image formats come from
+:func:`dice_sweep.plotting.image_formats`, asked for only by commands that draw.
+"""
+
+import os
+import tempfile
+from pathlib import Path
+
+from dice_sweep.errors import DiceSweepError
+
+PARTIAL = ".partial"  # what make and the SLURM scripts write to before renaming (docs/scaling.md)
+HDF5 = (".h5", ".hdf5")
+SWEEP_FILE = HDF5 + tuple(suffix + PARTIAL for suffix in HDF5)  # sweep -o, merge -o
+JSON = (".json",)
+MARKDOWN = (".md",)
+NPZ = (".npz",)  # numpy.savez appends .npz to any other name
+CSV = (".csv", ".csv.gz")
+GIF = (".gif",)
+FOLDER = None  # the suffixes of an output that is a folder (of pictures), created if missing
+
+
+def _one_of(suffixes) -> str:
+    return suffixes[0] if len(suffixes) == 1 else f"{', '.join(suffixes[:-1])} or {suffixes[-1]}"
+
+
+def _allowed(suffixes) -> str:
+    where = "in an existing folder you may write to"
+    if suffixes is FOLDER:
+        return f"a folder (created if missing) {where}"
+    return f"a file name ending in {_one_of(suffixes)} {where}"
+
+
+def _writable_folder(folder: Path) -> bool:
+    """True if a file can be created in ``folder`` (tried, then removed: root passes
+    os.access everywhere, yet cannot write to /sys or a read-only mount)."""
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return False
+    try:
+        handle, probe = tempfile.mkstemp(dir=folder, prefix=".dice-sweep-write-test-")
+    except OSError:
+        return False
+    os.close(handle)
+    os.unlink(probe)
+    return True
+
+
+def _problem(path: Path, suffixes) -> str | None:
+    """What makes ``path`` impossible to write as an output of this kind (None: nothing)."""
+    is_folder = suffixes is FOLDER
+    name = path.name.lower()
+    if not is_folder and not any(name.endswith(suffix) and len(name) > len(suffix) for suffix in suffixes):
+        return "wrong file extension" if name not in suffixes else "nothing before the extension"
+    if path.is_dir() and not is_folder:
+        return "is a folder"
+    if path.exists() and is_folder and not path.is_dir():
+        return "is a file"
+    parent = path.parent
+    if not parent.exists():
+        return f"folder {parent} does not exist"
+    if not parent.is_dir():
+        return f"{parent} is a file, not a folder"
+    if path.exists() and not os.access(path, os.W_OK | (os.X_OK if is_folder else 0)):
+        return "cannot be written (permission denied)"
+    if not path.exists() and not _writable_folder(parent):
+        return f"folder {parent} cannot be written to"
+    return None
+
+
+def check_outputs(*outputs) -> None:
+    """Refuse, with one line, outputs that cannot be written, before any work.
+
+    Parameters
+    ----------
+    *outputs : tuple of (str, path or None, tuple of str or None)
+        (option, path, allowed suffixes) of each output; a None path (an option not given)
+        is skipped; suffixes :data:`FOLDER` for a folder that is created if missing.
+
+    Raises
+    ------
+    DiceSweepError
+        ``OPTION: PATH: what is wrong (allowed: ...)`` for the first output whose name does
+        not end in an allowed suffix (case ignored), that is a folder (or, for a folder, a
+        file), whose folder does not exist or cannot be written to; or when two outputs are
+        the same path.
+    """
+    given = [(option, Path(path), suffixes) for option, path, suffixes in outputs if path]
+    for option, path, suffixes in given:
+        problem = _problem(path, suffixes)
+        if problem is not None:
+            raise DiceSweepError(f"{option}: {path}: {problem} (allowed: {_allowed(suffixes)})")
+    seen = {}
+    for option, path, _ in given:
+        where = os.path.realpath(path)
+        if where in seen:
+            raise DiceSweepError(f"{option}: {path}: also given to {seen[where]} (allowed: a different path for each output)")
+        seen[where] = option
