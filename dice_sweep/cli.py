@@ -8,6 +8,7 @@ Every path a command writes is checked before its work (:func:`dice_sweep.output
 """
 
 import json
+import os
 import sys
 
 import click
@@ -82,6 +83,22 @@ def _fast_kernel_start():
     from dice_sweep.physics._fast_start import skip_numba_blas_probe
 
     skip_numba_blas_probe()
+    _compile_notice()
+
+
+def _compile_notice():
+    """Say on stderr, once, when numba starts compiling one of this package's kernels: with an
+    empty or outdated cache the first run compiles for many seconds, silently otherwise (issue
+    16). A compile starts only after every check of the input, so a bad input still gets one
+    line."""
+    if os.environ.get("DICE_SWEEP_COMPILE_NOTE", "1") == "0":  # the test suite turns it off
+        return
+    from dice_sweep.physics._cache_guard import COLD_COMPILE_SECONDS, notify_first_compile
+
+    low, high = COLD_COMPILE_SECONDS
+    notify_first_compile(lambda: click.echo(
+        f"note: compiling the kernel (numba's cache is empty or out of date): about {low}-{high} s on 2 cores, "
+        "once; later runs load it in about a second", err=True))
 
 
 def _load(config_path, overrides):
@@ -345,6 +362,7 @@ def fit_command(data, config_path, rate, angle, effects_text, json_path, png_dir
     """
     from dice_sweep.measured.report import parse_effects, run_fit
 
+    _compile_notice()
     result = run_fit(data, _load(config_path, ()), effects=parse_effects(effects_text), rate=rate, angle=angle,
                      json_path=json_path, png_dir=png_dir)
     params = ", ".join(f"{k} = {p['value']:.4g} [{p['ci95'][0]:.4g}, {p['ci95'][1]:.4g}]" for k, p in result["params"].items())
@@ -370,6 +388,7 @@ def diagnose(data, config_path, rate, angle, json_path, md_path, png_dir, quiet)
     """
     from dice_sweep.measured.report import run_diagnose
 
+    _compile_notice()
     report = run_diagnose(data, _load(config_path, ()), rate=rate, angle=angle, json_path=json_path, md_path=md_path,
                           png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
     click.echo(f"{report['verdict']}: effects added {report['effects_added'] or 'none'}; confirmation error "

@@ -12,3 +12,7 @@ from hypothesis import settings
 settings.register_profile("deterministic", derandomize=True, database=None)
 settings.register_profile("explore", derandomize=False, print_blob=True)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
+
+# The CLI's "compiling the kernel" note would add a line to stderr in whichever test first
+# compiles a kernel (CI starts with an empty numba cache); tests/test_cli.py checks the note.
+os.environ.setdefault("DICE_SWEEP_COMPILE_NOTE", "0")

@@ -545,3 +545,30 @@ def test_simulate_drops_never_replaces_tracked_data(inputs, tmp_path):
     again = tmp_path / "again.csv"
     for _ in range(2):  # its own output it may write again
         assert run("simulate-drops", SQUARE, "-o", again, "--tracks", 2).exit_code == 0
+
+
+def test_a_compile_of_a_kernel_is_announced_once_on_stderr(monkeypatch):
+    """Issue 16: a cold start compiled for 20 s without a word. The note comes when numba
+    starts compiling a function of this package (a cache miss), once per process, and not
+    for other modules' functions. A fresh function stands in for the kernel."""
+    import numba
+
+    from dice_sweep.physics import _cache_guard
+
+    monkeypatch.setattr(_cache_guard, "_notified", [])
+    monkeypatch.setenv("DICE_SWEEP_COMPILE_NOTE", "1")
+    said = []
+    monkeypatch.setattr(cli.click, "echo", lambda text, err=False: said.append((text, err)))
+    cli._compile_notice()
+    namespace = {"__name__": "elsewhere.module"}
+    exec("def other(x):\n    return x + 1\n", namespace)
+    numba.njit(namespace["other"])(1)
+    assert said == []  # not one of ours
+    namespace = {"__name__": "dice_sweep.probe"}
+    exec("def ours(x):\n    return x + 2\n\ndef again(x):\n    return x + 3\n", namespace)
+    numba.njit(namespace["ours"])(1)
+    numba.njit(namespace["again"])(1)
+    cli._compile_notice()  # a second registration in the same process adds nothing
+    numba.njit(namespace["ours"])(2.5)
+    assert len(said) == 1 and said[0][1] is True
+    assert said[0][0].startswith("note: compiling the kernel") and "s on 2 cores" in said[0][0]

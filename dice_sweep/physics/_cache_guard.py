@@ -40,3 +40,37 @@ def drop_stale_cache():
         tmp.replace(stamp)
     except OSError:
         pass
+
+
+# A cold compile on the project's 2-core machine: 20-23 s for a first roll or sweep
+# (docs/performance.md, `dice-sweep roll` with an empty numba cache); slower machines more.
+COLD_COMPILE_SECONDS = (15, 40)
+
+
+_notified = []  # the callback registered in this process, if any
+
+
+def notify_first_compile(callback):
+    """Call ``callback()`` once, when numba first starts compiling a function of this package
+    (not on loading one from the cache); one such callback per process. Uses numba's compile
+    events (numba.core.event), which fire only on a cache miss."""
+    from numba.core import event
+
+    if _notified:
+        return
+    _notified.append(callback)
+
+    class _FirstCompile(event.Listener):
+        done = False
+
+        def on_start(self, ev):
+            dispatcher = ev.data.get("dispatcher") if isinstance(ev.data, dict) else None
+            module = getattr(getattr(dispatcher, "py_func", None), "__module__", "") or ""
+            if not self.done and module.startswith("dice_sweep."):
+                self.done = True
+                callback()
+
+        def on_end(self, ev):
+            pass
+
+    event.register("numba:compile", _FirstCompile())
