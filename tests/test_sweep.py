@@ -371,6 +371,15 @@ def test_summary_describes_the_run():
     assert summary.describe() == "out.h5 (7 x 10, shard 1/2): 30 rolls in 1.5 s (20 rolls/s), complete"
 
 
+def test_summary_rate_leaves_out_a_compile():
+    """Issue 16: make demo on a cold cache said 757 rolls/s, the compile counted as rolling."""
+    summary = SweepSummary("out.h5", (128, 128), (0, 1), 16384, 16384, 21.6, True, kernel_seconds=20.6)
+    assert summary.describe() == ("out.h5 (128 x 128, shard 0/1): 16384 rolls in 21.6 s "
+                                  "(16384 rolls/s after 20.6 s compiling the kernel), complete")
+    loaded = SweepSummary("out.h5", (128, 128), (0, 1), 16384, 16384, 1.3, True, kernel_seconds=0.3)
+    assert "(16384 rolls/s), complete" in loaded.describe()  # a cached load is not called a compile
+
+
 def test_resume_recomputes_a_tile_recorded_without_its_data(cfg, reference, tmp_path):
     path = tmp_path / "torn.h5"
     sweep(cfg, path, workers=1)
