@@ -98,3 +98,17 @@ def check_outputs(*outputs) -> None:
         if where in seen:
             raise DiceSweepError(f"{option}: {path}: also given to {seen[where]} (allowed: a different path for each output)")
         seen[where] = option
+
+
+def replace_atomically(path, write):
+    """Call ``write(binary file)`` on ``path.partial``, then rename it to ``path``: the whole
+    file or nothing (a killed run leaves no half-written output); on any error the partial
+    file is removed."""
+    tmp = Path(f"{path}{PARTIAL}")
+    try:
+        with open(tmp, "wb") as file:
+            write(file)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise

@@ -2,7 +2,6 @@
 
 import json
 import math
-import os
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +11,7 @@ from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.tracks import load_tracks
-from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs
+from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically
 
 
 def _load(data_path, cfg, rate, angle):
@@ -29,10 +28,8 @@ def parse_effects(text):
 
 
 def _write_atomic(path, text):
-    """Write a whole file or nothing (a killed run leaves no half-written report)."""
-    tmp = Path(f"{path}.partial")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    """Write a whole text file or nothing (a killed run leaves no half-written report)."""
+    replace_atomically(path, lambda file: file.write(text.encode()))
 
 
 def _jsonable(value):

@@ -46,10 +46,11 @@ from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.effects import measurement_maps
 from dice_sweep.errors import ConfigError, DiceSweepError
 from dice_sweep.geometry import DOWN, support
-from dice_sweep.outputs import CSV, JSON, check_outputs
+from dice_sweep.outputs import CSV, JSON, check_outputs, replace_atomically
 from dice_sweep.physics import STATE_COLUMNS, pack_params
 from dice_sweep.physics.kernel import COUNT_COLUMNS, REC_KIND, REC_T, REC_WIDTH, SEG_END, roll_one, sample_batch
 from dice_sweep.physics.params import FP_TMAX, IP_CONTINUE
+from dice_sweep.roll import MAX_RECORDS  # the buffer of the first pass (roll_one)
 
 __all__ = ["DROP_RANGES", "INITIAL_MODES", "SimulatedDrops", "simulate_drops", "write_drops", "run_simulate_drops",
            "parse_noise", "parse_range", "sidecar_path"]
@@ -84,7 +85,6 @@ MAX_FRAMES = 5_000_000  # tracks x frames per track, at most (memory: ~200 bytes
 # The record buffer inside kernel.sample_batch (rows); tests/measured/test_simulate_drops.py
 # checks that it is still this size. A drop with more records is cut where they run out.
 SAMPLE_BATCH_RECORDS = 4096
-MAX_RECORDS = 100_000  # the buffer of the first pass (roll_one), as dice_sweep.roll
 OVERRUN = 1.0  # s of true time the first pass runs past the last frame
 COLUMNS = ("traj", "t", "x", "y", "phi")
 SYNTHETIC_NOTE = ("SYNTHETIC: simulated by dice_sweep's own kernel (dice-sweep simulate-drops), not measured. "
@@ -444,19 +444,6 @@ def _provenance(drops, cfg, path):
     }
 
 
-def _replace_atomically(path, write):
-    """Call write(binary file) on ``path.partial``, then rename it to ``path``; on any error
-    the partial file is removed."""
-    tmp = Path(f"{path}.partial")
-    try:
-        with open(tmp, "wb") as file:
-            write(file)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def _write_data(drops, path, file):
     if not str(path).lower().endswith(".gz"):
         _write_csv(drops, file)
@@ -476,7 +463,7 @@ def write_drops(drops, cfg, path):
     try:
         with open(data_tmp, "wb") as file:
             _write_data(drops, path, file)
-        _replace_atomically(sidecar_path(path), lambda file: file.write(provenance))
+        replace_atomically(sidecar_path(path), lambda file: file.write(provenance))
         os.replace(data_tmp, path)
     except BaseException:
         data_tmp.unlink(missing_ok=True)
