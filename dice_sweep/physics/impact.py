@@ -65,6 +65,13 @@ def corner_normal_velocity(s, rx, ry, nx, ny):
 
 
 @numba.njit(cache=True)
+def beta_normal_at(fpar, speed):
+    """beta_normal at a normal impact speed (m/s): beta_normal / (1 + k speed), the
+    speed_restitution effect (k = 0: constant)."""
+    return fpar[FP_BN] / (1.0 + fpar[FP_KSR] * speed)
+
+
+@numba.njit(cache=True)
 def paper_law(s, alpha, radius, beta_n, beta_t, nx, ny):
     """Apply eqs 9, 12 and 13 in the surface frame (n, t); modifies s in place."""
     tx = ny
@@ -165,7 +172,7 @@ def resolve_impact(s, fpar, ipar, surf, corner, counts):
     u_n = corner_normal_velocity(s, rx, ry, nx, ny)
     if u_n >= 0.0:
         return u_n  # touching but not approaching (e.g. a side landing flat at rest): no impact
-    beta_n = fpar[FP_BN] / (1.0 + fpar[FP_KSR] * abs(u_n))
+    beta_n = beta_normal_at(fpar, abs(u_n))
     beta_t = fpar[FP_BT]
     if ipar[IP_MODEL] == MODEL_PAPER:
         if nx * s[3] + ny * s[4] < 0.0:

@@ -37,8 +37,8 @@ import numba
 import numpy as np
 
 from dice_sweep.physics.flight import corner_offset, surface_frame
-from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, corner_normal_velocity, paper_law, resolve_impact
-from dice_sweep.physics.params import FP_ALPHA, FP_BN, FP_BT, FP_INERTIA, FP_KSR, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_MODEL, MODEL_PAPER
+from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, beta_normal_at, corner_normal_velocity, paper_law, resolve_impact
+from dice_sweep.physics.params import FP_ALPHA, FP_BT, FP_INERTIA, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_MODEL, MODEL_PAPER
 
 MAX_ROWS = 4  # two normal rows and at most two tangential rows
 # Relative slack of the admissibility tests: round-off of the 4 x 4 solves, not physics.
@@ -309,7 +309,7 @@ def _fill_contact(contacts, i, s, fpar, surf, corner, c, sn):
     nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
     rx, ry = corner_offset(fpar, corner, c, sn)
     u_n = corner_normal_velocity(s, rx, ry, nx, ny)
-    beta_n = fpar[FP_BN] / (1.0 + fpar[FP_KSR] * abs(u_n))
+    beta_n = beta_normal_at(fpar, abs(u_n))
     contacts[i, 0] = nx
     contacts[i, 1] = ny
     contacts[i, 2] = rx
@@ -360,7 +360,7 @@ def _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
             saved4 = s[4]
             saved5 = s[5]
             # the law does not depend on the corner; its beta_normal on the faster approach
-            beta_n = fpar[FP_BN] / (1.0 + fpar[FP_KSR] * max(abs(u_a), abs(u_b)))
+            beta_n = beta_normal_at(fpar, max(abs(u_a), abs(u_b)))
             paper_law(s, fpar[FP_ALPHA], fpar[FP_R], beta_n, fpar[FP_BT], nx, ny)
             if min(
                 corner_normal_velocity(s, contacts[0, 2], contacts[0, 3], nx, ny),
