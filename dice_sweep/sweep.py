@@ -642,12 +642,12 @@ def run_sweep(
     shard_tiles = tiles.shard_tiles(shard)
     rolls_in_shard = sum(tiles.size(index) for index in shard_tiles)
 
-    kernel_seconds = [0.0]
+    kernel_seconds = 0.0  # set by the warm-up below; summary reads it when called
 
     def summary(rolls_computed, complete, already_complete=False):
         return SweepSummary(
             str(path), tiles.shape, shard, rolls_computed, rolls_in_shard,
-            time.perf_counter() - started, complete, already_complete, kernel_seconds=kernel_seconds[0],
+            time.perf_counter() - started, complete, already_complete, kernel_seconds=kernel_seconds,
         )
 
     check_outputs(("--output", path, SWEEP_FILE))  # say so now, not after compiling and forking
@@ -669,7 +669,7 @@ def run_sweep(
         if executor == "local":
             loading = time.perf_counter()
             job.warm_up()  # before forking, so that every worker inherits the compiled kernel
-            kernel_seconds[0] = time.perf_counter() - loading
+            kernel_seconds = time.perf_counter() - loading
         with (
             _StopRequest() as stop,  # before forking: workers never see the default handler
             _executor_results(executor, scheduler, job, todo, workers, stop) as results,
