@@ -94,6 +94,7 @@ def roll_states(job: SweepJob, states, workers: int = 1, on_chunk=None) -> tuple
     """
     states = np.ascontiguousarray(states, dtype=np.float64)
     chunks = [states[start : start + CHUNK_ROLLS] for start in range(0, len(states), CHUNK_ROLLS)]
+    job = job.with_engine_for(states, len(states), min(workers, max(1, len(chunks))))
     if not chunks:
         return job.roll(states)
     results = []

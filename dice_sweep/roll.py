@@ -5,6 +5,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dice_sweep.physics import COUNT_COLUMNS, STATUS_NAMES, pack_params
+from dice_sweep import engine
 from dice_sweep.physics.kernel import REC_WIDTH, roll_one, sample_records
 
 MAX_RECORDS = 100_000
@@ -72,7 +73,8 @@ def roll_config(cfg, state=None):
     rec = np.zeros((MAX_RECORDS, REC_WIDTH))
     counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
     s0 = initial_state(cfg) if state is None else np.asarray(state, dtype=float)
-    outcome, status, t_decided, t_end, n_rec = roll_one(fpar, ipar, s0, rec, counts)
+    args = (fpar, ipar, s0, rec, counts)
+    outcome, status, t_decided, t_end, n_rec = engine.run(roll_one, engine.call_engine(roll_one, args), *args)
     return RollReport(
         outcome=int(outcome),
         status=int(status),
@@ -92,5 +94,6 @@ def sample_path(cfg, report, times):
     t = np.clip(np.sort(np.asarray(times, dtype=float)), 0.0, report.t_end)
     out = np.zeros((t.size, 6))
     rec = report.records
-    sample_records(fpar, ipar, rec, rec.shape[0], t, out)
+    args = (fpar, ipar, rec, rec.shape[0], t, out)
+    engine.run(sample_records, engine.call_engine(sample_records, args), *args)
     return out

@@ -30,6 +30,8 @@ from tqdm import tqdm
 from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
+from dice_sweep.engine import ENGINE_NUMBA, ENGINE_PLAIN, PROBE_ROLLS, sweep_engine
+from dice_sweep.engine import run as engine_run
 from dice_sweep.physics import COUNT_COLUMNS, STATE_COLUMNS, STATUS_NAMES, pack_params, roll_batch
 from dice_sweep.storage import (
     SweepAxis,
@@ -79,6 +81,9 @@ class SweepSummary:
     kernel_seconds : float
         Of ``seconds``, the time spent loading or compiling the kernel (a cold start compiles
         for tens of seconds; the rate leaves it out).
+    engine : str
+        ``numba`` (compiled) or ``plain`` (the kernel's source uncompiled: numba's cache was
+        cold and the work smaller than a compile; :mod:`dice_sweep.engine`).
     """
 
     path: str
@@ -91,6 +96,7 @@ class SweepSummary:
     already_complete: bool = False
     merged_parts: int = 0
     kernel_seconds: float = 0.0
+    engine: str = ENGINE_NUMBA
 
     def describe(self) -> str:
         """One line for the user."""
@@ -104,7 +110,12 @@ class SweepSummary:
         rate = self.rolls_computed / rolling if rolling > 0 else 0.0
         state = "complete" if self.complete else "NOT complete"
         # a compile is not the kernel's speed (make demo on a cold cache said 757 rolls/s)
-        compiled = f" after {self.kernel_seconds:.1f} s compiling the kernel" if self.kernel_seconds >= COMPILE_SHOWN else ""
+        if self.engine == ENGINE_PLAIN:
+            compiled = ", uncompiled: a compile would take longer than this run"
+        elif self.kernel_seconds >= COMPILE_SHOWN:
+            compiled = f" after {self.kernel_seconds:.1f} s compiling the kernel"
+        else:
+            compiled = ""
         return (
             f"{where}: {self.rolls_computed} rolls in {self.seconds:.1f} s "
             f"({rate:.0f} rolls/s{compiled}), {state}"
@@ -143,6 +154,24 @@ def _grid_states(base_state, x_column, xs, y_column, ys) -> np.ndarray:
     states[:, x_column] = np.tile(xs, len(ys))
     states[:, y_column] = np.repeat(ys, len(xs))
     return states
+
+
+def _probe_states(job: "SweepJob", todo: Sequence[int], count: int = PROBE_ROLLS) -> np.ndarray:
+    """Starts of ``count`` cells spread evenly over the cells of tiles ``todo`` (row-major
+    within each tile): what the engine choice times."""
+    sizes = np.array([job.tiles.size(index) for index in todo], dtype=np.int64)
+    if sizes.sum() == 0:
+        return np.empty((0, len(STATE_COLUMNS)))
+    offsets = np.linspace(0, sizes.sum() - 1, min(count, int(sizes.sum()))).astype(np.int64)
+    ends = np.cumsum(sizes)
+    states = []
+    for offset in offsets:
+        k = int(np.searchsorted(ends, offset, side="right"))
+        rows, cols = job.tiles.bounds(todo[k])
+        row, col = divmod(int(offset - (ends[k] - sizes[k])), cols.stop - cols.start)
+        states.append(_grid_states(job.base_state, job.x_column, job.xs[cols.start + col : cols.start + col + 1],
+                                   job.y_column, job.ys[rows.start + row : rows.start + row + 1])[0])
+    return np.array(states)
 
 
 def _base_state(cfg) -> np.ndarray:
@@ -234,6 +263,7 @@ class SweepJob:
     y_column: int
     ys: np.ndarray
     tiles: TileGrid
+    engine: str = ENGINE_NUMBA  # dice_sweep.engine: "plain" runs the kernel's source uncompiled
 
     @classmethod
     def from_config(cls, cfg, tile_shape=DEFAULT_TILE_SHAPE) -> "SweepJob":
@@ -252,15 +282,26 @@ class SweepJob:
             tiles=TileGrid((len(ys), len(xs)), tuple(tile_shape)),
         )
 
-    def roll(self, states: np.ndarray) -> tuple[np.ndarray, ...]:
-        """``roll_batch`` on ``states``: (outcome, status, counts, t_decided)."""
+    def roll(self, states: np.ndarray, engine: str | None = None) -> tuple[np.ndarray, ...]:
+        """``roll_batch`` on ``states``: (outcome, status, counts, t_decided), on the job's
+        engine unless ``engine`` is given."""
         n_rolls = len(states)
         outcome = np.empty(n_rolls, np.int8)
         status = np.empty(n_rolls, np.uint8)
         counts = np.empty((n_rolls, len(COUNT_COLUMNS)), np.int32)
         t_decided = np.empty(n_rolls)
-        roll_batch(self.fpar, self.ipar, states, outcome, status, counts, t_decided)
+        engine_run(roll_batch, engine or self.engine, self.fpar, self.ipar, states, outcome, status, counts, t_decided)
         return outcome, status, counts, t_decided
+
+    def with_engine_for(self, states: np.ndarray, rolls: int, workers: int) -> "SweepJob":
+        """This job on the engine that finishes ``rolls`` rolls like ``states`` soonest
+        (:func:`dice_sweep.engine.sweep_engine`): compiled when numba has the kernel, plain
+        when the work is smaller than a compile."""
+        one = self.base_state[np.newaxis, :].copy()
+        probe_args = (self.fpar, self.ipar, one, np.empty(1, np.int8), np.empty(1, np.uint8),
+                      np.empty((1, len(COUNT_COLUMNS)), np.int32), np.empty(1))
+        engine = sweep_engine(roll_batch, probe_args, lambda batch: self.roll(batch, ENGINE_PLAIN), states, rolls, workers)
+        return dataclasses.replace(self, engine=engine)
 
     def compute_tile(self, index: int) -> dict[str, np.ndarray]:
         """Roll every cell of tile ``index``; the stored maps by dataset (``rolls_to_maps``)."""
@@ -276,7 +317,8 @@ class SweepJob:
         return encode_tile(maps, chunk_shape(self.tiles.tile_shape, self.tiles.shape), COUNT_COLUMNS)
 
     def warm_up(self) -> None:
-        """Compile (or load) the kernel in this process with a one-roll batch."""
+        """Compile (or load) the kernel in this process with a one-roll batch (with the plain
+        engine: build its functions), so that forked workers inherit it."""
         self.roll(self.base_state[np.newaxis, :].copy())
 
 
@@ -648,6 +690,7 @@ def run_sweep(
         return SweepSummary(
             str(path), tiles.shape, shard, rolls_computed, rolls_in_shard,
             time.perf_counter() - started, complete, already_complete, kernel_seconds=kernel_seconds,
+            engine=job.engine,
         )
 
     check_outputs(("--output", path, SWEEP_FILE))  # say so now, not after compiling and forking
@@ -668,6 +711,7 @@ def run_sweep(
     try:
         if executor == "local":
             loading = time.perf_counter()
+            job = job.with_engine_for(_probe_states(job, todo), rolls_todo, min(workers, max(1, len(todo))))
             job.warm_up()  # before forking, so that every worker inherits the compiled kernel
             kernel_seconds = time.perf_counter() - loading
         with (

@@ -7,10 +7,14 @@ On the same initial conditions (the fig08 grid of the Table I die):
    1e-4 s and stopped by the same energy rule (rolls per CPU second, one core);
 4. the CLI sweep of configs/fig08.toml at 1 and 2 workers (at --sweep-num, and at --long-num
    where the fixed start of a command is a few per cent of it), and `dice-sweep roll` with an empty
-   numba cache (cold) and again (warm).
+   numba cache: see 5.
 Prints a Markdown table; ``--write`` puts it into docs/performance.md. Public API only.
+5. the cold start (issue 16): a new user's first commands and a CI job's, each a fresh process
+   with an empty NUMBA_CACHE_DIR, on the engine the tool chooses and with the compile forced,
+   then warm; ``--write`` puts it into docs/cold_start.md. ``--cold`` runs this part only.
 
     python scripts/bench.py [--num 128] [--sweep-num 1024] [--long-num 4096] [--pymunk-rolls 200] [--write]
+    python scripts/bench.py --cold [--write]
 """
 
 import argparse
@@ -90,6 +94,52 @@ def timed(command, env=None):
     return time.perf_counter() - start
 
 
+COLD_REPEAT = 3  # cold runs per command (median): each compiles or probes from scratch
+
+
+def cold_start_markdown(tmp: Path) -> str:
+    """Wall times of first commands with an empty numba cache, chosen engine and compile forced."""
+    table1 = str(ROOT / "configs" / "table1.toml")
+    demo = str(ROOT / "configs" / "demo.toml")
+    fig09 = str(ROOT / "configs" / "fig09.toml")
+    commands = [
+        ("`dice-sweep roll configs/table1.toml`", lambda out: CLI + ["roll", table1]),
+        ("`dice-sweep sweep configs/demo.toml` (make demo's sweep, 128 x 128, 2 workers)",
+         lambda out: CLI + ["sweep", demo, "-o", str(out), "--quiet"]),
+        ("`dice-sweep sweep configs/fig09.toml` at 32 x 32 (walls, rigid law, about 140 impacts a roll)",
+         lambda out: CLI + ["sweep", fig09, "-o", str(out), "--quiet", "--set", "grid.x.num=32", "--set", "grid.y.num=32"]),
+    ]
+    runs = 0
+
+    def run(command, engine, cache):
+        nonlocal runs
+        runs += 1
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+        env.pop("DICE_SWEEP_ENGINE", None)
+        if engine:
+            env["DICE_SWEEP_ENGINE"] = engine
+        return timed(command(tmp / f"cold{runs}.h5"), env=env)
+
+    def cold(command, engine=None):
+        return float(np.median([run(command, engine, tmp / f"empty{runs}-{i}") for i in range(COLD_REPEAT)]))
+
+    lines = ["| command | cold, engine chosen (s) | cold, compile forced (s) | warm (s) |", "|---|---|---|---|"]
+    for name, command in commands:
+        chosen = cold(command)
+        forced = cold(command, "numba")
+        warm_cache = tmp / "warm"
+        run(command, "numba", warm_cache)
+        warm = min(run(command, None, warm_cache) for _ in range(3))
+        lines.append(f"| {name} | {chosen:.2f} | {forced:.2f} | {warm:.2f} |")
+    # a new user's first two commands in one fresh environment
+    fresh = tmp / "fresh-user"
+    first = run(commands[0][1], None, fresh) + run(commands[1][1], None, fresh)
+    lines += ["", f"A new user's first `roll` then first `sweep` (the demo), one empty cache: **{first:.2f} s** "
+              f"in all. Cold = median of {COLD_REPEAT} fresh processes, each with its own empty NUMBA_CACHE_DIR; "
+              "warm = best of 3 with the cache filled."]
+    return "\n".join(lines)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--num", type=int, default=128, help="cells per axis of the kernel grid")
@@ -98,8 +148,13 @@ def main():
                         help="cells per axis of a long CLI sweep, where the fixed start matters little (0: skip)")
     parser.add_argument("--long-repeat", type=int, default=3, help="runs of the long sweep per worker count")
     parser.add_argument("--pymunk-rolls", type=int, default=200)
-    parser.add_argument("--write", action="store_true", help="write docs/performance.md")
+    parser.add_argument("--write", action="store_true", help="write docs/performance.md and docs/cold_start.md")
+    parser.add_argument("--cold", action="store_true", help="only the cold-start part (docs/cold_start.md)")
     args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        publish(cold_start_markdown(Path(tmp)), "cold_start.md", "cold_start_intro.md", args.write)
+    if args.cold:
+        return 0
     fig08 = ROOT / "configs" / "fig08.toml"
     cfg = load_config(fig08, [f"grid.x.num={args.num}", f"grid.y.num={args.num}"])
     states = initial_states(cfg, axis_values(cfg.grid.x), axis_values(cfg.grid.y))
@@ -138,14 +193,10 @@ def main():
                 in_process[workers] = min(in_process[workers], time.perf_counter() - begin)
                 if workers == 2:
                     parent_cpu = min(parent_cpu, time.process_time() - cpu)
-        env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp / "numba-cache"))
-        cold = timed(CLI + ["roll", str(ROOT / "configs" / "table1.toml")], env=env)
-        warm = min(timed(CLI + ["roll", str(ROOT / "configs" / "table1.toml")], env=env) for _ in range(3))
     lines += ["| command | wall time (s) |", "|---|---|", *sweep_rows(args.sweep_num, 3, sweep_times)]
     if long_times:
         lines += sweep_rows(args.long_num, args.long_repeat, long_times)
-    lines += [f"| `dice-sweep roll configs/table1.toml`, empty numba cache (cold) | {cold:.2f} |",
-              f"| same, cache filled (warm, best of 3) | {warm:.2f} |", "",
+    lines += ["", "Cold starts (an empty numba cache): [cold_start.md](cold_start.md).", "",
               "Amdahl split of the CLI sweeps:", "",
               "| part | 1 worker (s) | 2 workers (s) | speed-up |", "|---|---|---|---|",
               f"| fixed start: the same `sweep` command on a 2 x 2 grid (best of 3) | {start_cost:.2f} | {start_cost:.2f} | 1 |",

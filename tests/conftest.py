@@ -16,3 +16,8 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 # The CLI's "compiling the kernel" note would add a line to stderr in whichever test first
 # compiles a kernel (CI starts with an empty numba cache); tests/test_cli.py checks the note.
 os.environ.setdefault("DICE_SWEEP_COMPILE_NOTE", "0")
+
+# The compiled kernel everywhere, as before dice_sweep.engine: which engine runs small cold work
+# depends on the numba cache and a timing probe, and tests must not. tests/test_engine.py
+# covers the plain engine and the choice, with this variable set per test.
+os.environ.setdefault("DICE_SWEEP_ENGINE", "numba")

@@ -1,8 +1,8 @@
 """numba kernels of the die: flight, contact, impact laws, pivot phase, outcome rule."""
 
-from dice_sweep.physics._cache_guard import drop_stale_cache
+from dice_sweep.physics._cache_guard import install_locator
 
-drop_stale_cache()
+install_locator()  # before any kernel is defined: numba picks a locator per function then
 
 from dice_sweep.physics.params import pack_params  # noqa: E402
 from dice_sweep.physics.kernel import (  # noqa: E402

@@ -1,19 +1,32 @@
-"""Drop numba's on-disk cache when any physics source changed.
+"""Where numba caches this package's kernels, and what makes a cached copy current.
 
-numba's ``cache=True`` keys each function's cache on that function's own file only, so a
-change in ``flight.py`` leaves ``kernel.roll_batch`` loading a stale machine-code copy that
-still calls the old flight code (seen while developing the kernel). A stamp with the hash of
-all physics sources, checked once per process at import, removes such stale entries.
+numba's own locators key each function's cache on that function's file only, so a change in
+``flight.py`` left ``kernel.roll_batch`` loading a stale machine-code copy that still called
+the old flight code (seen while developing the kernel); and with ``NUMBA_CACHE_DIR`` the
+cache of a file sits under a hash of its absolute directory, so a fresh checkout elsewhere (a
+CI job in a new build directory) never finds it. The locator below, installed before the
+kernels are defined, keys every kernel's cache on one hash of all physics sources and puts
+it in one directory that does not depend on where the package lives:
+
+- ``$NUMBA_CACHE_DIR/dice_sweep_physics`` when ``NUMBA_CACHE_DIR`` is set (what a CI job
+  keeps between runs: docs/performance.md, "Keeping the compiled kernel between CI jobs");
+- else ``dice_sweep/physics/__pycache__`` when writable, else numba's user-wide cache
+  directory.
+
+A cache written from other sources is ignored and overwritten, never loaded.
 """
 
+import functools
 import hashlib
+import os
 from pathlib import Path
 
 _PHYSICS_DIR = Path(__file__).resolve().parent
-_STAMP_NAME = "dice_sweep_sources.sha256"
+CACHE_SUBDIR = "dice_sweep_physics"
 
 
 def source_digest():
+    """SHA-256 (hex) of every physics source file, by name and content."""
     digest = hashlib.sha256()
     for path in sorted(_PHYSICS_DIR.glob("*.py")):
         digest.update(path.name.encode())
@@ -21,30 +34,75 @@ def source_digest():
     return digest.hexdigest()
 
 
-def drop_stale_cache():
-    """Remove cached kernels built from other sources; never fails (a read-only install
-    leaves numba to use its own user cache directory)."""
-    cache_dir = _PHYSICS_DIR / "__pycache__"
-    stamp = cache_dir / _STAMP_NAME
-    digest = source_digest()
+@functools.cache
+def _process_digest():
+    return source_digest()  # once per process: the sources do not change under a running kernel
+
+
+def cache_directories():
+    """Directories to try for the kernels' cache, in order (see the module)."""
+    from numba.core import config
+    from numba.misc.appdirs import AppDirs
+
+    if config.CACHE_DIR:
+        return [os.path.join(config.CACHE_DIR, CACHE_SUBDIR)]
+    user_wide = AppDirs(appname="numba", appauthor=False).user_cache_dir
+    return [str(_PHYSICS_DIR / "__pycache__"), os.path.join(user_wide, CACHE_SUBDIR)]
+
+
+def _locator_class():
+    from numba.core import caching
+
+    class SourcesLocator(caching._CacheLocator):
+        """numba cache locator of dice_sweep.physics (see the module)."""
+
+        def __init__(self, py_func, cache_path):
+            self._lineno = py_func.__code__.co_firstlineno
+            self._cache_path = cache_path
+
+        def get_cache_path(self):
+            return self._cache_path
+
+        def get_source_stamp(self):
+            return _process_digest()
+
+        def get_disambiguator(self):
+            return str(self._lineno)
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if not getattr(py_func, "__module__", "").startswith("dice_sweep.physics."):
+                return None
+            for path in cache_directories():
+                locator = cls(py_func, path)
+                try:
+                    locator.ensure_cache_path()
+                except OSError:
+                    continue
+                return locator
+            return None  # nowhere writable: numba's own locators decide
+
+    return SourcesLocator
+
+
+def install_locator():
+    """Make numba locate the caches of dice_sweep.physics with the locator above; other
+    functions keep numba's own. Safe to call twice; never fails (an unknown numba layout
+    leaves numba's defaults)."""
     try:
-        if stamp.exists() and stamp.read_text() == digest:
-            return
-        if cache_dir.is_dir():
-            for entry in cache_dir.iterdir():
-                if entry.suffix in (".nbi", ".nbc"):
-                    entry.unlink(missing_ok=True)
-        cache_dir.mkdir(exist_ok=True)
-        tmp = stamp.with_suffix(".tmp")
-        tmp.write_text(digest)
-        tmp.replace(stamp)
-    except OSError:
+        from numba.core import caching
+
+        impl = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+        classes = impl._locator_classes
+        if not any(getattr(c, "__name__", "") == "SourcesLocator" for c in classes):
+            impl._locator_classes = [_locator_class(), *classes]
+    except (ImportError, AttributeError):
         pass
 
 
-# A cold compile on the project's 2-core machine: 20-23 s for a first roll or sweep
-# (docs/performance.md, `dice-sweep roll` with an empty numba cache); slower machines more.
-COLD_COMPILE_SECONDS = (15, 40)
+# A cold compile on the project's 2-core machine: 18-19 s for a first roll or sweep that compiles
+# (docs/cold_start.md, "compile forced"); slower machines more.
+COLD_COMPILE_SECONDS = (15, 30)
 
 
 _notified = []  # the callback registered in this process, if any

@@ -337,7 +337,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     if decided >= 0 and not keep_going:
         return decided, STATUS_DECIDED, t, t, nrec
     pivoting = False
-    corner = -1
+    # np.int64(-1), not -1: while typing the loop numba first sees the literal alone and
+    # compiled the pivot and impact code a second time for corner = Literal[int](-1), about
+    # 5 s of a cold start with the other literals below (scripts/bench.py, cold rows)
+    corner = np.int64(-1)
     px = 0.0
     chi = 0.0
     slip = 0.0
@@ -479,8 +482,8 @@ def _roll_fixed_step(fpar, ipar, s, rec, counts, start):
         advance_flight(start, dt, fpar, s)
         t = step * dt
         deepest = 0.0
-        surf = -1
-        corner = -1
+        surf = np.int64(-1)  # not literals: see corner in _roll_event
+        corner = np.int64(-1)
         for sf in range(n_surf):
             nx, ny, d = surface_frame(sf, half_width)
             for k in range(n):

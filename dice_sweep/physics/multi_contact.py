@@ -60,8 +60,8 @@ def second_contact(s, fpar, n, n_surf, surf0, corner0, window, tol, contact_spee
     sn = math.sin(s[2])
     speed = math.sqrt(s[3] * s[3] + s[4] * s[4]) + abs(s[5]) * fpar[FP_RHO_MAX]
     best_time = math.inf
-    best_surf = -1
-    best_corner = -1
+    best_surf = np.int64(-1)  # not literals: see corner in kernel._roll_event
+    best_corner = np.int64(-1)
     reach = tol + speed * window  # no corner farther than this can arrive within the window
     for surf in range(n_surf):
         nx, ny, d = surface_frame(surf, fpar[FP_WALL])
