@@ -55,6 +55,7 @@ __all__ = [
     "INTEGRATOR_METHODS",
     "GRID_PARAMS",
     "PARAM_UNITS",
+    "PARAM_LONG_NAMES",
     "load_config",
     "parse_config",
     "config_to_toml",
@@ -65,8 +66,16 @@ CONTACT_MODELS = ("paper", "rigid")
 INTEGRATOR_METHODS = ("event", "fixed_step")
 GRID_PARAMS = ("y0", "omega0", "vx0", "vy0", "phi0", "x0")
 PARAM_UNITS = {"x0": "m", "y0": "m", "phi0": "rad", "vx0": "m/s", "vy0": "m/s", "omega0": "rad/s"}
+PARAM_LONG_NAMES = {  # what each parameter is, as sweep files describe their axes (docs/hdf5.md)
+    "x0": "initial horizontal position of the die's centre",
+    "y0": "initial height of the die's centre",
+    "phi0": "initial angle of the die",
+    "vx0": "initial horizontal velocity",
+    "vy0": "initial vertical velocity",
+    "omega0": "initial angular velocity",
+}
 TABLE1_CIRCUMRADIUS = 0.019 / math.sqrt(2.0)  # m, Table I: 1.9/sqrt(2) cm
-MAX_SIDES = 1000
+MAX_SIDES = 127  # sides are stored as int8 (docs/hdf5.md): 0..126 and -1, -128 the fill
 MAX_GRID_NUM = 100_000  # cells per axis; keeps the start check's arrays (and sweeps) finite
 MIN_CIRCUMRADIUS = 1e-9  # m; a smaller die underflows its moment of inertia per R^2 (1e-308 divided by zero)
 MAX_EVENTS = 2**62  # events (fixed_step: steps) of one roll; the kernel counts them in int64
@@ -80,7 +89,7 @@ DEFAULT_CONTACT_WINDOW = 1e-6  # s; docs/physics.md, "Two contacts at once", say
 
 @dataclass(frozen=True)
 class Die:
-    """A regular n-gon plate: ``sides`` n (3..1000) and ``circumradius`` R (m)."""
+    """A regular n-gon plate: ``sides`` n (3..127) and ``circumradius`` R (m)."""
 
     sides: int
     circumradius: float

@@ -4,6 +4,12 @@ A sweep file holds one (ny, nx) final-state map per quantity, chunked by tile, p
 values as dimension scales and root attributes describing the run. Tiles are written one at a
 time and recorded in ``/done_tiles`` only after their data, so a killed run loses at most the
 tiles it was computing, and ``complete`` turns true only once every tile of the shard is in.
+
+Layout 2 is also a netCDF-4 file as xarray reads it (``xarray.open_dataset(path,
+engine="h5netcdf")``): the axes are named after the swept parameters, every variable has CF
+``long_name`` (and ``units`` where it is a quantity), and every map has a ``_FillValue`` no
+computed cell holds, so cells not computed yet decode to NaN. Layout 1 files are still read,
+resumed and merged.
 """
 
 from __future__ import annotations
@@ -20,14 +26,29 @@ import h5py
 import numpy as np
 
 from dice_sweep import __version__
+from dice_sweep.config import PARAM_LONG_NAMES
 from dice_sweep.errors import DiceSweepError
 
-LAYOUT_VERSION = 1  # bump when a dataset or attribute changes meaning
+LAYOUT_VERSION = 2  # bump when a dataset or attribute changes meaning
+READ_LAYOUTS = (1, LAYOUT_VERSION)  # layouts this version reads, resumes and merges; it writes LAYOUT_VERSION
 NOT_COMPUTED = 255  # /status of a cell no tile has written yet
-UNDECIDED = -1  # /outcome of a roll without an answer (and of a cell not computed yet)
-COUNT_MAX = np.iinfo(np.uint16).max  # counters are clipped here
-COUNTS_GROUP = "counts"  # the kernel counters other than impacts live in /counts/<name>
+UNDECIDED = -1  # /outcome of a roll without an answer (layout 1: also of a cell not computed yet)
+# Layout 2 fills the other maps with values no roll gives either (docs/hdf5.md, "Fill values"):
+OUTCOME_NOT_COMPUTED = -128  # /outcome of a cell not computed yet: no side, and not UNDECIDED
+COUNT_NOT_COMPUTED = np.iinfo(np.uint16).max  # a counter of a cell not computed yet
+COUNT_MAX = COUNT_NOT_COMPUTED - 1  # counters are clipped here (layout 1: at 65535, fill 0)
+COUNTS_GROUP = "counts"  # layout 1 kept the counters other than impacts in /counts/<name>
+TILE_DIM = "tile"  # the dimension (and coordinate: tile index) of /done_tiles
+CONVENTIONS = "CF-1.8"
 SHARD_RULE = "tile_index % N == I"
+COUNT_LONG_NAMES = {  # long_name of each kernel counter (dice_sweep.physics.COUNT_COLUMNS)
+    "impacts": "impacts of the roll (table and walls)",
+    "wall_impacts": "impacts on the walls",
+    "corner_fallbacks": "impacts resolved at the corner",
+    "pivots": "pivot phases",
+    "energy_clips": "impulses moved so that the impact gains no energy",
+    "multi_contacts": "impacts of two contacts at once",
+}
 
 _GZIP_LEVEL = 4
 _COMPRESSION = {"compression": "gzip", "compression_opts": _GZIP_LEVEL, "shuffle": True}
@@ -109,7 +130,8 @@ class SweepData:
     status : numpy.ndarray
         uint8 (ny, nx): kernel status code (0 decided), 255 not computed.
     impacts : numpy.ndarray
-        uint16 (ny, nx): table and wall impacts of the roll, clipped at 65535.
+        uint16 (ny, nx): table and wall impacts of the roll, clipped at 65534 (65535 in
+        layout 1 files).
     t_decided : numpy.ndarray
         float32 (ny, nx): simulated time at which the side was decided, s (NaN if not).
     counts : dict of str to numpy.ndarray
@@ -128,6 +150,10 @@ class SweepData:
         Meaning of the status codes below 255.
     dice_sweep_version, created : str
         Version that made the file and its creation time (ISO 8601, UTC).
+
+    Whatever the file's layout, a cell not computed reads as layout 1 stored it: outcome -1,
+    status 255, counters 0, t_decided NaN; only ``status`` (:attr:`computed`) tells it from
+    a computed one.
     """
 
     path: str
@@ -150,6 +176,13 @@ class SweepData:
     def computed(self) -> np.ndarray:
         """bool (ny, nx): cells some tile has written."""
         return self.status != NOT_COMPUTED
+
+    @property
+    def maps(self) -> dict[str, np.ndarray]:
+        """Every map by name, as :func:`rolls_to_maps` names them (``outcome``, ``status``,
+        ``t_decided``, ``impacts`` and the other counters)."""
+        return {"outcome": self.outcome, "status": self.status, "t_decided": self.t_decided,
+                "impacts": self.impacts, **self.counts}
 
     @property
     def extent(self) -> tuple[float, float, float, float]:
@@ -229,24 +262,70 @@ def _reading(path, what: str):
     return _naming(path, f"cannot read its {what}", ": the file is damaged; remove it and rerun the sweep or merge that wrote it")
 
 
-def _count_dataset(name: str) -> str:
-    return name if name == "impacts" else f"{COUNTS_GROUP}/{name}"
-
-
 def _map_datasets(count_columns) -> dict[str, tuple[np.dtype, object]]:
-    """Dataset path -> (dtype, fill value) of every (ny, nx) map of the layout."""
+    """Name -> (dtype, fill value) of every (ny, nx) map, as layout 2 stores them.
+
+    The name is the map's dataset path in a layout 2 file (:func:`_dataset_paths` gives a
+    layout 1 file's) and the key of the dicts of maps this module takes and gives.
+    """
     maps = {
-        "outcome": (np.dtype(np.int8), UNDECIDED),
+        "outcome": (np.dtype(np.int8), OUTCOME_NOT_COMPUTED),
         "status": (np.dtype(np.uint8), NOT_COMPUTED),
         "t_decided": (np.dtype(np.float32), np.nan),
     }
     for name in count_columns:
-        maps[_count_dataset(name)] = (np.dtype(np.uint16), 0)
+        maps[name] = (np.dtype(np.uint16), COUNT_NOT_COMPUTED)
     return maps
 
 
+def _dataset_paths(count_columns, layout: int) -> dict[str, str]:
+    """Map name -> its dataset path in a file of ``layout``."""
+    paths = {name: name for name in _map_datasets(count_columns)}
+    if layout == 1:
+        paths.update({name: f"{COUNTS_GROUP}/{name}" for name in count_columns if name != "impacts"})
+    return paths
+
+
+def _flags(values, meanings) -> dict:
+    """CF attributes of a map of codes: ``flag_values`` and the space-separated ``flag_meanings``."""
+    if any(len(meaning.split()) != 1 for meaning in meanings):
+        raise ValueError(f"flag meanings must be single words: {list(meanings)}")
+    return {"flag_values": np.asarray(values), "flag_meanings": " ".join(meanings)}
+
+
+def _map_attributes(header: "SweepHeader") -> dict[str, dict]:
+    """CF attributes of the maps of a layout 2 file, by name, ``_FillValue`` included.
+
+    Codes (outcome, status) carry no ``units`` (CF: they are not quantities); t_decided is
+    in s and the counters in 1 (dimensionless counts).
+    """
+    maps = _map_datasets(header.count_columns)
+    attrs = {
+        "outcome": {
+            "long_name": "side the die came to rest on",
+            "comment": "0 .. n-1 (n = root attribute sides), numbered as in Smith 2014 Fig. 7; "
+            "-1 = undecided: the roll ended without a side, status says why",
+            "undecided": np.int8(UNDECIDED),
+        },
+        "status": {
+            "long_name": "kernel status code of the roll",
+            **_flags(np.arange(len(header.status_names), dtype=np.uint8), header.status_names),
+        },
+        "t_decided": {"long_name": "simulated time at which the side was decided", "units": "s"},
+    }
+    for name in header.count_columns:
+        attrs[name] = {
+            "long_name": COUNT_LONG_NAMES.get(name, name.replace("_", " ")),
+            "units": "1",
+            "valid_range": np.array([0, COUNT_MAX], dtype=np.uint16),
+        }
+    for name, (dtype, fill) in maps.items():
+        attrs[name]["_FillValue"] = dtype.type(fill)
+    return attrs
+
+
 def rolls_to_maps(count_columns, shape, outcome, status, counts, t_decided) -> dict:
-    """Kernel outputs of a tile (flat, row-major) -> the stored (rows, cols) arrays by dataset.
+    """Kernel outputs of a tile (flat, row-major) -> the stored (rows, cols) arrays by map name.
 
     Parameters
     ----------
@@ -260,7 +339,8 @@ def rolls_to_maps(count_columns, shape, outcome, status, counts, t_decided) -> d
     Returns
     -------
     dict of str to numpy.ndarray
-        Dataset path -> array in the stored dtype (counters clipped at 65535, time float32).
+        Map name (``outcome``, ``status``, ``t_decided``, the counters by name) -> array in
+        the stored dtype (counters clipped at COUNT_MAX = 65534, time float32).
     """
     maps = {
         "outcome": outcome.reshape(shape).astype(np.int8, copy=False),
@@ -269,8 +349,19 @@ def rolls_to_maps(count_columns, shape, outcome, status, counts, t_decided) -> d
     }
     for column, name in enumerate(count_columns):
         clipped = np.clip(counts[:, column], 0, COUNT_MAX).astype(np.uint16)
-        maps[_count_dataset(name)] = clipped.reshape(shape)
+        maps[name] = clipped.reshape(shape)
     return maps
+
+
+def _as_layout_2(block: dict, count_columns) -> dict:
+    """A block of a layout 1 file with layout 2's values: the fill values of the cells not
+    computed, and counters clipped at COUNT_MAX (layout 1's 65535 would read as a fill)."""
+    not_computed = block["status"] == NOT_COMPUTED
+    block["outcome"] = np.where(not_computed, OUTCOME_NOT_COMPUTED, block["outcome"]).astype(np.int8)
+    for name in count_columns:
+        clipped = np.minimum(block[name], COUNT_MAX)
+        block[name] = np.where(not_computed, COUNT_NOT_COMPUTED, clipped).astype(np.uint16)
+    return block
 
 
 def chunk_shape(tile_shape, shape) -> tuple[int, int]:
@@ -280,7 +371,7 @@ def chunk_shape(tile_shape, shape) -> tuple[int, int]:
 
 @dataclasses.dataclass(frozen=True)
 class EncodedTile:
-    """A tile's maps as the bytes of their HDF5 chunks (shuffle, then deflate), by dataset.
+    """A tile's maps as the bytes of their HDF5 chunks (shuffle, then deflate), by map name.
 
     Made by :func:`encode_tile` where the tile is computed (a worker), so that the process
     writing the file only copies bytes (``write_direct_chunk``) instead of compressing. In a
@@ -343,9 +434,11 @@ class SweepFile:
         self._h5 = h5file
         self.header = header
         self.path = h5file.filename
+        self.layout = int(h5file.attrs["dice_sweep_layout"])
+        self._axis_paths = _axis_paths(h5file, self.layout)
         # looking a dataset up by name costs as much as writing a tile's worth of it
-        names = [*_map_datasets(header.count_columns), "done_tiles"]
-        self._datasets = {name: h5file[name] for name in names}
+        paths = {**_dataset_paths(header.count_columns, self.layout), "done_tiles": "done_tiles"}
+        self._datasets = {name: h5file[path] for name, path in paths.items()}
         self._chunk = chunk_shape(header.tile_shape, header.shape)
         self._one_space = h5py.h5s.create_simple((1,))  # the memory side of _mark_done's write
         # encoded tiles are copied as they are only into datasets filtered as encode_tile does
@@ -372,6 +465,11 @@ class SweepFile:
         n_tiles : int
             Number of tiles of the whole grid (length of ``/done_tiles``).
         """
+        maps = _map_datasets(header.count_columns)
+        axis_paths = (header.y.param, header.x.param)  # the axes are named after their parameters
+        if axis_paths[0] == axis_paths[1] or {*maps, "done_tiles", TILE_DIM, SIMULATED, REFINE_LEVEL} & {*axis_paths}:
+            raise ValueError(f"swept parameters {axis_paths} are not two names free in the layout")
+        attributes = _map_attributes(header)
         try:
             h5 = h5py.File(path, "w-")
         except OSError as error:
@@ -381,10 +479,13 @@ class SweepFile:
         h5.attrs.update(
             {
                 "dice_sweep_layout": LAYOUT_VERSION,
+                "Conventions": CONVENTIONS,
+                "x_param": header.x.param,
+                "y_param": header.y.param,
                 "config_toml": header.config_toml,
                 "dice_sweep_version": header.dice_sweep_version,
                 "created": _utc_now(),
-                "complete": False,
+                "complete": np.int8(0),  # not a bool: netCDF-C does not read h5py's bool (an HDF5 enum)
                 "sides": header.sides,
                 "shard": f"{header.shard[0]}/{header.shard[1]}",
                 "shard_rule": SHARD_RULE,
@@ -392,23 +493,24 @@ class SweepFile:
                 "count_columns": list(header.count_columns),
             }
         )
-        for name, axis in (("y", header.y), ("x", header.x)):
-            scale = h5.create_dataset(name, data=np.asarray(axis.values, dtype=np.float64))
-            scale.attrs.update({"param": axis.param, "unit": axis.unit, "min": axis.lo, "max": axis.hi})
+        for axis in (header.y, header.x):
+            scale = h5.create_dataset(axis.param, data=np.asarray(axis.values, dtype=np.float64))
+            scale.attrs.update({"long_name": PARAM_LONG_NAMES.get(axis.param, axis.param), "units": axis.unit,
+                                "min": axis.lo, "max": axis.hi})
             scale.make_scale(axis.param)
-        for name, (dtype, fill) in _map_datasets(header.count_columns).items():
+        for name, (dtype, fill) in maps.items():
             dataset = h5.create_dataset(
                 name, shape=(ny, nx), dtype=dtype, chunks=chunks, fillvalue=fill, **_COMPRESSION
             )
-            for dim, axis_name in enumerate(("y", "x")):
-                dataset.dims[dim].label = axis_name
-                dataset.dims[dim].attach_scale(h5[axis_name])
-        h5["outcome"].attrs["undecided"] = UNDECIDED
-        h5["status"].attrs.update(
-            {"names": list(header.status_names), "not_computed": NOT_COMPUTED}
-        )
-        h5["t_decided"].attrs["unit"] = "s"
-        h5.create_dataset("done_tiles", shape=(n_tiles,), dtype=np.uint8, fillvalue=0)
+            dataset.attrs.update(attributes[name])
+            _attach_axes(h5, dataset, axis_paths)
+        tiles = h5.create_dataset(TILE_DIM, data=np.arange(n_tiles, dtype=np.int64))
+        tiles.attrs["long_name"] = "tile index (row-major, docs/hdf5.md)"
+        tiles.make_scale(TILE_DIM)
+        done = h5.create_dataset("done_tiles", shape=(n_tiles,), dtype=np.uint8, fillvalue=0)
+        done.attrs.update({"long_name": "1 once the tile's data are in the file",
+                           **_flags(np.array([0, 1], dtype=np.uint8), ("not_written", "written"))})
+        done.dims[0].attach_scale(tiles)
         h5.flush()
         return cls(h5, header)
 
@@ -506,7 +608,12 @@ class SweepFile:
 
     def read_tile(self, rows: slice, cols: slice) -> EncodedTile | dict[str, np.ndarray]:
         """The tile at (rows, cols) as its stored chunks when they can be copied as they are
-        (:class:`EncodedTile`, no decompression: what merge copies), else as arrays."""
+        (:class:`EncodedTile`, no decompression: what merge copies), else as arrays.
+
+        A layout 1 file gives arrays with the values of layout 2 (the one files are written in).
+        """
+        if self.layout != LAYOUT_VERSION:
+            return _as_layout_2(self.read_block(rows, cols), self.header.count_columns)
         if not self._copies_chunks(rows, cols):
             return self.read_block(rows, cols)
         chunks = {}
@@ -521,24 +628,27 @@ class SweepFile:
         return EncodedTile((rows.stop - rows.start, cols.stop - cols.start), chunks)
 
     def read_block(self, rows: slice, cols: slice) -> dict[str, np.ndarray]:
-        """Stored arrays of a block, by dataset path (the form :meth:`write_tile` takes)."""
+        """Stored arrays of a block, by map name (the form :meth:`write_tile` takes)."""
         names = _map_datasets(self.header.count_columns)
         with _reading(self.path, "maps"):
             return {name: self._datasets[name][rows, cols] for name in names}
 
     def mark_complete(self) -> None:
         """Set the ``complete`` attribute (call only when every tile of the shard is done)."""
-        self._h5.attrs["complete"] = True
+        self._h5.attrs["complete"] = True if self.layout == 1 else np.int8(1)
         self._h5.flush()
 
     def read(self) -> SweepData:
         """All maps and the description, in memory."""
-        h5 = self._h5
         header = self.header
         extra = [name for name in header.count_columns if name != "impacts"]
         with _reading(self.path, "maps"):
-            maps = {name: h5[name][...] for name in ("outcome", "status", "impacts", "t_decided")}
-            counts = {name: h5[_count_dataset(name)][...] for name in extra}
+            maps = {name: self._datasets[name][...] for name in ("outcome", "status", "impacts", "t_decided")}
+            counts = {name: self._datasets[name][...] for name in extra}
+        not_computed = maps["status"] == NOT_COMPUTED  # as layout 1 stored them (SweepData)
+        maps["outcome"][not_computed] = UNDECIDED
+        for values in (maps["impacts"], *counts.values()):
+            values[not_computed] = 0
         return SweepData(
             path=str(self.path),
             **maps,
@@ -569,11 +679,25 @@ def create_whole(path, header: SweepHeader, n_tiles: int):
         raise
 
 
-def _read_axis(dataset: h5py.Dataset) -> SweepAxis:
+def _axis_paths(h5: h5py.File, layout: int) -> tuple[str, str]:
+    """Dataset paths of the (row, column) axes: ``/y``, ``/x`` in layout 1, the parameters' names after."""
+    if layout == 1:
+        return ("y", "x")
+    return (str(h5.attrs["y_param"]), str(h5.attrs["x_param"]))
+
+
+def _attach_axes(h5: h5py.File, dataset: h5py.Dataset, axis_paths) -> None:
+    """Attach the (row, column) dimension scales to a map: what names its dimensions (no
+    labels: netCDF does not use them, and xarray would show them as an attribute)."""
+    for dim, path in enumerate(axis_paths):
+        dataset.dims[dim].attach_scale(h5[path])
+
+
+def _read_axis(dataset: h5py.Dataset, layout: int) -> SweepAxis:
     attrs = dataset.attrs
     return SweepAxis(
-        param=str(attrs["param"]),
-        unit=str(attrs["unit"]),
+        param=str(attrs["param"]) if layout == 1 else dataset.name.rsplit("/", 1)[-1],
+        unit=str(attrs["unit" if layout == 1 else "units"]),
         values=dataset[...],
         lo=float(attrs["min"]),
         hi=float(attrs["max"]),
@@ -583,18 +707,20 @@ def _read_axis(dataset: h5py.Dataset) -> SweepAxis:
 def _read_header(h5: h5py.File) -> SweepHeader:
     attrs = h5.attrs
     layout = int(attrs["dice_sweep_layout"])
-    if layout != LAYOUT_VERSION:
-        raise ValueError(f"layout version {layout}, this dice_sweep reads {LAYOUT_VERSION}")
+    if layout not in READ_LAYOUTS:
+        raise ValueError(f"layout version {layout}, this dice_sweep reads {' and '.join(map(str, READ_LAYOUTS))}")
     shard_index, shard_count = (int(part) for part in str(attrs["shard"]).split("/"))
+    y_path, x_path = _axis_paths(h5, layout)
+    status = h5["status"].attrs
     return SweepHeader(
         config_toml=str(attrs["config_toml"]),
         sides=int(attrs["sides"]),
-        x=_read_axis(h5["x"]),
-        y=_read_axis(h5["y"]),
+        x=_read_axis(h5[x_path], layout),
+        y=_read_axis(h5[y_path], layout),
         tile_shape=tuple(int(v) for v in attrs["tile_shape"]),
         shard=(shard_index, shard_count),
         count_columns=_str_tuple(attrs["count_columns"]),
-        status_names=_str_tuple(h5["status"].attrs["names"]),
+        status_names=_str_tuple(status["names"]) if layout == 1 else tuple(str(status["flag_meanings"]).split()),
         dice_sweep_version=str(attrs["dice_sweep_version"]),
     )
 
@@ -635,14 +761,18 @@ def write_refinement_maps(sweep_file: SweepFile, refine_level: np.ndarray, level
         Number of refinement levels; pixels at this level were rolled at their own centre.
     """
     h5 = sweep_file._h5
-    ny, nx = sweep_file.header.shape
-    chunks = (min(sweep_file.header.tile_shape[0], ny), min(sweep_file.header.tile_shape[1], nx))
+    chunks = chunk_shape(sweep_file.header.tile_shape, sweep_file.header.shape)
     maps = {SIMULATED: (refine_level == levels).astype(np.uint8), REFINE_LEVEL: refine_level.astype(np.uint8)}
+    attributes = {
+        SIMULATED: {"long_name": "1 where the pixel was rolled at its own centre, 0 where it took a coarser cell's roll",
+                    **_flags(np.array([0, 1], dtype=np.uint8), ("coarser_cell", "own_centre"))},
+        REFINE_LEVEL: {"long_name": "refinement level whose roll gave the pixel its value (0 = coarsest)",
+                       "valid_range": np.array([0, levels], dtype=np.uint8)},
+    }
     for name, values in maps.items():
         dataset = h5.create_dataset(name, data=values, chunks=chunks, **_COMPRESSION)
-        for dim, axis_name in enumerate(("y", "x")):
-            dataset.dims[dim].label = axis_name
-            dataset.dims[dim].attach_scale(h5[axis_name])
+        dataset.attrs.update(attributes[name])
+        _attach_axes(h5, dataset, sweep_file._axis_paths)
     h5.attrs["refine_levels"] = int(levels)
     h5.flush()
 

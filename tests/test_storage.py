@@ -12,7 +12,10 @@ import pytest
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.storage import (
     COUNT_MAX,
+    COUNT_NOT_COMPUTED,
+    LAYOUT_VERSION,
     NOT_COMPUTED,
+    OUTCOME_NOT_COMPUTED,
     EncodedTile,
     SweepAxis,
     SweepFile,
@@ -26,6 +29,7 @@ from dice_sweep.storage import (
 )
 
 DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs" / "hdf5.md"
+GOLDEN = pathlib.Path(__file__).resolve().parent / "golden"
 COUNT_COLUMNS = ("impacts", "wall_impacts", "pivots")
 TILE = (2, 3)
 # a 3 x 5 map in tiles of 2 x 3: tiles 0 1 (rows 0-1), 2 3 (row 2, clipped)
@@ -83,7 +87,7 @@ def test_round_trip_gives_back_every_map_axis_and_attribute(tmp_path):
         assert np.array_equal(data.status[rows, cols], maps["status"])
         assert np.array_equal(data.impacts[rows, cols], maps["impacts"])
         assert np.array_equal(data.t_decided[rows, cols], maps["t_decided"], equal_nan=True)
-        assert np.array_equal(data.counts["pivots"][rows, cols], maps["counts/pivots"])
+        assert np.array_equal(data.counts["pivots"][rows, cols], maps["pivots"])
     assert data.outcome.dtype == np.int8 and data.status.dtype == np.uint8
     assert data.impacts.dtype == np.uint16 and data.t_decided.dtype == np.float32
     assert sorted(data.counts) == ["pivots", "wall_impacts"]
@@ -107,15 +111,19 @@ def test_unwritten_tiles_read_as_not_computed_and_file_as_incomplete(tmp_path):
         block = TILE_BOUNDS[index]
         assert (data.status[block] == NOT_COMPUTED).all()
         assert (data.outcome[block] == -1).all() and np.isnan(data.t_decided[block]).all()
+        assert (data.impacts[block] == 0).all() and (data.counts["pivots"][block] == 0).all()
     with SweepFile.open(path) as sweep_file:
         assert sweep_file.done_tiles().tolist() == [False, True, True, False]
+    with h5py.File(path, "r") as h5:  # stored: fill values no computed cell holds
+        assert (h5["outcome"][TILE_BOUNDS[0]] == OUTCOME_NOT_COMPUTED).all()
+        assert (h5["pivots"][TILE_BOUNDS[3]] == COUNT_NOT_COMPUTED).all()
 
 
 def test_counts_are_clipped_to_uint16():
     counts = np.array([[70000, -1, 5]], dtype=np.int32)
     maps = rolls_to_maps(COUNT_COLUMNS, (1, 1), np.zeros(1), np.zeros(1), counts, np.zeros(1))
-    assert maps["impacts"][0, 0] == COUNT_MAX and maps["counts/wall_impacts"][0, 0] == 0
-    assert maps["counts/pivots"][0, 0] == 5
+    assert maps["impacts"][0, 0] == COUNT_MAX == 65534 and maps["wall_impacts"][0, 0] == 0
+    assert maps["pivots"][0, 0] == 5
 
 
 def test_plain_h5py_sees_documented_layout_and_dimension_scales(tmp_path):
@@ -123,19 +131,45 @@ def test_plain_h5py_sees_documented_layout_and_dimension_scales(tmp_path):
     write_file(path)
     with h5py.File(path, "r") as h5:
         assert h5.attrs["complete"] and h5.attrs["shard"] == "0/1"
+        assert h5.attrs["dice_sweep_layout"] == LAYOUT_VERSION == 2
+        assert (h5.attrs["x_param"], h5.attrs["y_param"]) == ("vx0", "y0")
         assert list(h5.attrs["tile_shape"]) == list(TILE)
         assert h5["done_tiles"][...].tolist() == [1, 1, 1, 1]
-        for name in ("outcome", "status", "impacts", "t_decided", "counts/wall_impacts"):
+        assert h5["done_tiles"].dims[0][0] == h5["tile"] and h5["tile"][...].tolist() == [0, 1, 2, 3]
+        assert "counts" not in h5 and "x" not in h5 and "y" not in h5
+        for name in ("outcome", "status", "impacts", "t_decided", "wall_impacts", "pivots"):
             dataset = h5[name]
             assert dataset.shape == (3, 5) and dataset.chunks == TILE
             assert dataset.compression == "gzip"
-            assert dataset.dims[0]["y0"] == h5["y"] and dataset.dims[1]["vx0"] == h5["x"]
-            assert (dataset.dims[0].label, dataset.dims[1].label) == ("y", "x")
-        for name, param, unit in (("x", "vx0", "m/s"), ("y", "y0", "m")):
-            assert h5[name].is_scale
-            assert (h5[name].attrs["param"], h5[name].attrs["unit"]) == (param, unit)
-        assert h5["status"].fillvalue == NOT_COMPUTED
-        assert h5["t_decided"].attrs["unit"] == "s"
+            assert dataset.dims[0][0] == h5["y0"] and dataset.dims[1][0] == h5["vx0"]
+            assert len(dataset.dims[0]) == len(dataset.dims[1]) == 1
+            assert "long_name" in dataset.attrs
+        for name, unit in (("vx0", "m/s"), ("y0", "m")):
+            assert h5[name].is_scale and h5[name].attrs["units"] == unit
+        fills = {"outcome": OUTCOME_NOT_COMPUTED, "status": NOT_COMPUTED, "impacts": COUNT_NOT_COMPUTED,
+                 "pivots": COUNT_NOT_COMPUTED}
+        for name, fill in fills.items():  # the HDF5 fill value is the _FillValue xarray masks
+            assert h5[name].fillvalue == fill == h5[name].attrs["_FillValue"]
+            assert h5[name].attrs["_FillValue"].dtype == h5[name].dtype
+        assert np.isnan(h5["t_decided"].fillvalue) and np.isnan(h5["t_decided"].attrs["_FillValue"])
+        assert h5["t_decided"].attrs["units"] == "s" and h5["impacts"].attrs["units"] == "1"
+        assert h5["status"].attrs["flag_meanings"] == "decided t_max"
+
+
+def test_a_layout_1_file_is_read_with_the_meaning_it_had():
+    """tests/golden holds files of layout 1 (/x, /y, /counts/<name>, outcome filled with -1)."""
+    path = GOLDEN / "fig08.h5"
+    with h5py.File(path, "r") as h5:
+        assert h5.attrs["dice_sweep_layout"] == 1 and "counts/pivots" in h5
+        pivots = h5["counts/pivots"][...]
+    data = read_sweep(path)
+    assert (data.x.param, data.x.unit, data.y.param, data.y.unit) == ("omega0", "rad/s", "y0", "m")
+    assert data.status_names[:2] == ("decided", "t_max") and data.complete
+    assert np.array_equal(data.counts["pivots"], pivots) and data.outcome.shape == (32, 32)
+    with SweepFile.open(path) as sweep_file:
+        assert sweep_file.layout == 1
+        block = sweep_file.read_tile(slice(0, 32), slice(0, 32))  # as layout 2 stores it, for merge
+        assert isinstance(block, dict) and np.array_equal(block["pivots"], pivots)
 
 
 def test_create_refuses_an_existing_file(tmp_path):
