@@ -184,7 +184,7 @@ class RefinedMaps:
     Attributes
     ----------
     maps : dict of str to numpy.ndarray
-        The stored (ny, nx) maps by dataset path (as :func:`dice_sweep.storage.rolls_to_maps`).
+        The stored (ny, nx) maps by map name (as :func:`dice_sweep.storage.rolls_to_maps`).
     refine_level : numpy.ndarray
         uint8 (ny, nx): level whose roll gave each pixel its value (``levels`` = rolled at
         the pixel's own centre).
