@@ -139,11 +139,12 @@ def probe_seconds_per_roll(roll_plain, states: np.ndarray) -> float:
     return (time.perf_counter() - started) / done
 
 
-def sweep_engine(kernel, args, roll_plain, states: np.ndarray, rolls: int, workers: int) -> str:
+def sweep_engine(kernel, args, roll_plain, states, rolls: int, workers: int) -> str:
     """Engine for ``rolls`` rolls like ``states`` over ``workers`` processes.
 
     Compiled when numba has ``kernel`` ready for ``args``; otherwise plain if its estimated
     time (from a probe of a few plain rolls) is below a compile's, COMPILE_SECONDS.
+    ``states`` may be a callable returning them, called only if a probe is needed.
     """
     forced = forced_engine()
     if forced is not None:
@@ -151,7 +152,7 @@ def sweep_engine(kernel, args, roll_plain, states: np.ndarray, rolls: int, worke
     if rolls == 0 or compiled_ready(kernel, args):
         return ENGINE_NUMBA
     try:
-        per_roll = probe_seconds_per_roll(roll_plain, states)
+        per_roll = probe_seconds_per_roll(roll_plain, states() if callable(states) else states)
     except Exception:  # noqa: BLE001  (e.g. a domain error the compiled code would not raise)
         return ENGINE_NUMBA
     plain_seconds = per_roll * rolls / max(1, workers)

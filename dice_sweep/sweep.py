@@ -293,8 +293,9 @@ class SweepJob:
         engine_run(roll_batch, engine or self.engine, self.fpar, self.ipar, states, outcome, status, counts, t_decided)
         return outcome, status, counts, t_decided
 
-    def with_engine_for(self, states: np.ndarray, rolls: int, workers: int) -> "SweepJob":
-        """This job on the engine that finishes ``rolls`` rolls like ``states`` soonest
+    def with_engine_for(self, states, rolls: int, workers: int) -> "SweepJob":
+        """This job on the engine that finishes ``rolls`` rolls like ``states`` (an array, or
+        a callable giving one when a probe needs them) soonest
         (:func:`dice_sweep.engine.sweep_engine`): compiled when numba has the kernel, plain
         when the work is smaller than a compile."""
         one = self.base_state[np.newaxis, :].copy()
@@ -711,7 +712,7 @@ def run_sweep(
     try:
         if executor == "local":
             loading = time.perf_counter()
-            job = job.with_engine_for(_probe_states(job, todo), rolls_todo, min(workers, max(1, len(todo))))
+            job = job.with_engine_for(lambda: _probe_states(job, todo), rolls_todo, min(workers, max(1, len(todo))))
             job.warm_up()  # before forking, so that every worker inherits the compiled kernel
             kernel_seconds = time.perf_counter() - loading
         with (

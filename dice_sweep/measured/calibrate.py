@@ -14,9 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from dice_sweep.errors import DiceSweepError
 from dice_sweep.geometry import inertia_ratio
 from dice_sweep.measured import impacts
-from dice_sweep.measured.impacts import landing_tilt, rest_pose, table_level, track_impacts
+from dice_sweep.measured.impacts import MIN_FIT_FRAMES, landing_tilt, rest_pose, table_level, track_impacts
 
 __all__ = ["CalibrationResult", "calibrate", "trackset_impacts", "summarise", "impact_row", "COEFFICIENTS", "DIAGNOSTICS", "GROUPS"]
 
@@ -302,6 +303,18 @@ def trackset_impacts(trackset, cfg, *, first_only=False):
     return rests, table, found
 
 
+def _require_usable_tracks(trackset) -> None:
+    """A one-line error when no track has the frames an impact fit needs on both sides: a file
+    of NaN poses, of glitches only, or of tracks too short (issue 16: it reported 0 impacts)."""
+    needed = 2 * MIN_FIT_FRAMES + 1
+    if not any(int(np.count_nonzero(track.usable)) >= needed for track in trackset.tracks):
+        raise DiceSweepError(
+            f"{trackset.path}: tracks: no usable track: every track has fewer than {needed} usable frames "
+            "(finite pose, not a glitch) (allowed: at least one track with an impact and "
+            f"{MIN_FIT_FRAMES} usable frames on each side of it)"
+        )
+
+
 def calibrate(trackset, cfg):
     """Measure the restitution coefficients at every impact of every track.
 
@@ -318,6 +331,7 @@ def calibrate(trackset, cfg):
     """
     sides, radius = cfg.die.sides, cfg.die.circumradius
     g = cfg.world.g
+    _require_usable_tracks(trackset)
     rests, table, found = trackset_impacts(trackset, cfg)
     rows = []
     skipped = {"too few frames on a side": 0, "not clean (fit, contact or continuity)": 0}

@@ -62,12 +62,19 @@ def test_fit_and_markdown_with_few_tracks(files, tmp_path):
     assert (tmp_path / "png" / "residual_error_vs_time.png").stat().st_size > 1000
 
 
-@pytest.mark.parametrize("command", ["fit", "diagnose"])
-def test_no_usable_tracks_is_a_one_line_error(tmp_path, command):
+NO_USABLE_TRACK = {
+    "too_short": "traj,t,x,y,phi\n1,0,0,0.1,0\n1,0.002,0,0.1,0\n2,0,0,0.1,0\n",
+    "all_nan": "traj,t,x,y,phi\n" + "".join(f"{k // 50},{(k % 50) * 0.002},nan,nan,nan\n" for k in range(100)),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(NO_USABLE_TRACK))
+@pytest.mark.parametrize("command", ["fit", "diagnose", "calibrate"])
+def test_no_usable_tracks_is_a_one_line_error(tmp_path, command, kind):
     config = tmp_path / "die.toml"
     config.write_text(CONFIG)
     data = tmp_path / "d.csv"
-    data.write_text("traj,t,x,y,phi\n1,0,0,0.1,0\n1,0.002,0,0.1,0\n2,0,0,0.1,0\n")
+    data.write_text(NO_USABLE_TRACK[kind])
     result = invoke(command, data, "--config", config, "--json", tmp_path / "out.json")
     assert result.exit_code == 2, result.output
     assert "tracks" in result.output and "allowed" in result.output and "Traceback" not in result.output
