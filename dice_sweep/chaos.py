@@ -881,7 +881,7 @@ def scattered_starts(cfg, centres, sigmas, samples, rng) -> np.ndarray:
     numpy.ndarray
         float (P * samples, 6), the samples of point p in rows p * samples ... (p + 1) * samples - 1.
     """
-    from dice_sweep.physics import STATE_COLUMNS
+    from dice_sweep.physics.layout import STATE_COLUMNS
 
     aimed = np.repeat(centres, samples, axis=0)
     scale = np.zeros(len(STATE_COLUMNS))

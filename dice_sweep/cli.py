@@ -80,7 +80,7 @@ def _warn(line):
 
 def _fast_kernel_start():
     # commands that only run our kernels skip numba's 0.3-0.5 s BLAS probe (see the module)
-    from dice_sweep.physics._fast_start import skip_numba_blas_probe
+    from dice_sweep.startup import skip_numba_blas_probe
 
     skip_numba_blas_probe()
     _compile_notice()
@@ -93,7 +93,7 @@ def _compile_notice():
     line."""
     if os.environ.get("DICE_SWEEP_COMPILE_NOTE", "1") == "0":  # the test suite turns it off
         return
-    from dice_sweep.physics._cache_guard import COLD_COMPILE_SECONDS, notify_first_compile
+    from dice_sweep.startup import COLD_COMPILE_SECONDS, notify_first_compile
 
     low, high = COLD_COMPILE_SECONDS
     notify_first_compile(lambda: click.echo(

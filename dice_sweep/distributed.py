@@ -20,7 +20,7 @@ from collections.abc import Iterator, Sequence
 
 from dice_sweep import __version__
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.physics._cache_guard import source_digest
+from dice_sweep.startup import source_digest
 
 CONNECT_TIMEOUT_SECONDS = 30.0
 _RESULT_POLL_SECONDS = 0.005  # how often the client looks for results and Ctrl-C

@@ -38,7 +38,7 @@ from tqdm import tqdm
 
 from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.physics import COUNT_COLUMNS, STATUS_NAMES
+from dice_sweep.physics.layout import COUNT_COLUMNS, STATUS_NAMES
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
 from dice_sweep.storage import SweepAxis, SweepHeader, create_whole, exists_error, rolls_to_maps, write_refinement_maps
 from dice_sweep.sweep import (

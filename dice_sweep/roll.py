@@ -4,11 +4,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from dice_sweep.physics import COUNT_COLUMNS, STATUS_NAMES, pack_params
 from dice_sweep import engine
-from dice_sweep.physics.kernel import REC_WIDTH, roll_one, sample_records
-
-MAX_RECORDS = 100_000
+from dice_sweep.physics import pack_params
+from dice_sweep.physics.kernel import roll_one, sample_records
+from dice_sweep.physics.layout import COUNT_COLUMNS, REC_WIDTH, ROLL_RECORDS, STATUS_NAMES
 
 
 def initial_state(cfg):
@@ -70,7 +69,7 @@ class RollReport:
 def roll_config(cfg, state=None):
     """Simulate the roll of a validated config (its [initial] state unless ``state`` given)."""
     fpar, ipar = pack_params(cfg)
-    rec = np.zeros((MAX_RECORDS, REC_WIDTH))
+    rec = np.zeros((ROLL_RECORDS, REC_WIDTH))
     counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
     s0 = initial_state(cfg) if state is None else np.asarray(state, dtype=float)
     args = (fpar, ipar, s0, rec, counts)

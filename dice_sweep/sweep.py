@@ -32,7 +32,8 @@ from dice_sweep.errors import DiceSweepError
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
 from dice_sweep.engine import ENGINE_NUMBA, ENGINE_PLAIN, PROBE_ROLLS, sweep_engine
 from dice_sweep.engine import run as engine_run
-from dice_sweep.physics import COUNT_COLUMNS, STATE_COLUMNS, STATUS_NAMES, pack_params, roll_batch
+from dice_sweep.physics import pack_params, roll_batch
+from dice_sweep.physics.layout import COUNT_COLUMNS, STATE_COLUMNS, STATUS_NAMES
 from dice_sweep.storage import (
     SweepAxis,
     SweepFile,

@@ -144,7 +144,7 @@ def test_set_values_reach_the_library(calls):
 @pytest.mark.parametrize(
     ("text", "fragments"),
     [
-        ("[die]\nsides = 2\n", ["die.sides", "2 is outside the allowed range [3, 1000]"]),
+        ("[die]\nsides = 2\n", ["die.sides", "2 is outside the allowed range [3, 127]"]),
         ("[contact]\nbeta_tangential = 2.0\n", ["contact.beta_tangential", "allowed range [-1, 1]"]),
         ("[walls]\nseparation = 0.01\n", ["walls.separation", "allowed range (0.0268701, inf) m"]),
         ("[initial]\ny0 = 0.001\n", ["initial.y0", "into the table"]),
@@ -553,9 +553,9 @@ def test_a_compile_of_a_kernel_is_announced_once_on_stderr(monkeypatch):
     for other modules' functions. A fresh function stands in for the kernel."""
     import numba
 
-    from dice_sweep.physics import _cache_guard
+    from dice_sweep import startup
 
-    monkeypatch.setattr(_cache_guard, "_notified", [])
+    monkeypatch.setattr(startup, "_notified", [])
     monkeypatch.setenv("DICE_SWEEP_COMPILE_NOTE", "1")
     said = []
     monkeypatch.setattr(cli.click, "echo", lambda text, err=False: said.append((text, err)))

@@ -8,7 +8,8 @@ import pytest
 from dice_sweep import effects
 from dice_sweep.config import parse_config
 from dice_sweep.physics import pack_params
-from dice_sweep.physics.params import FP_DRAG, FP_G, FP_KSR, FP_MU, IP_MODEL, MODEL_RIGID
+from dice_sweep.physics.layout import MODEL_RIGID
+from dice_sweep.physics.params import FP_DRAG, FP_G, FP_KSR, FP_MU, IP_MODEL
 
 CFG = parse_config("[die]\nsides = 4\ncircumradius = 0.0424\n")
 NAMES = effects.names()

@@ -31,9 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from dice_sweep import effects as registry
+from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured.flights import segment_track
 from dice_sweep.physics import pack_params
 from dice_sweep.physics.kernel import sample_batch
+from dice_sweep.physics.layout import PATH_CUT, SAMPLE_RECORDS
 from dice_sweep.physics.params import IP_CONTINUE
 
 MIN_FLIGHT_FRAMES = 4  # a flight needs this many usable frames to carry a state of its own
@@ -202,6 +204,9 @@ class ShootingModel:
         out = np.zeros((self.seg.times.size, 6))
         outcome = np.zeros(self.seg.count, np.int8)
         sample_batch(fpar, ipar, np.ascontiguousarray(state_to_true(states)), np.ascontiguousarray(times), self.seg.starts, out, outcome)
+        if (outcome == PATH_CUT).any():
+            raise DiceSweepError(f"fit: a segment's simulated path needs more than {SAMPLE_RECORDS} kernel records "
+                                 "(allowed: segments between impacts of real drops need a few)")
         return pose_to_file(out[:, :3]), outcome
 
     def residuals(self, values, states):

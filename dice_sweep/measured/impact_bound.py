@@ -388,7 +388,7 @@ def law_after(state, cfg, *, model, beta_normal, beta_tangential, friction=math.
     -------
     numpy.ndarray, shape (3,)
     """
-    from dice_sweep.physics import COUNT_COLUMNS  # lazy: compiles the kernels
+    from dice_sweep.physics.layout import COUNT_COLUMNS
     from dice_sweep.physics.flight import SURF_TABLE
     from dice_sweep.physics.impact import resolve_impact
 
@@ -424,7 +424,7 @@ def two_contact_after(state, cfg, *, model, beta_normal, beta_tangential, fricti
         None when no case of the two-contact law is admissible (the kernel then resolves the
         contacts one at a time).
     """
-    from dice_sweep.physics import COUNT_COLUMNS  # lazy: compiles the kernels
+    from dice_sweep.physics.layout import COUNT_COLUMNS
     from dice_sweep.physics.flight import SURF_TABLE
     from dice_sweep.physics.multi_contact import resolve_two_contacts
 
@@ -597,7 +597,7 @@ def first_impact_bounds(trackset, cfg, *, rigid, paper, clean_only=True, inertia
     skipped : dict
         First impacts left out, by reason.
     """
-    from dice_sweep.physics import COUNT_COLUMNS  # lazy: compiles the kernels
+    from dice_sweep.physics.layout import COUNT_COLUMNS
 
     sides, radius, g = cfg.die.sides, cfg.die.circumradius, cfg.world.g
     inertia = inertia_per_mass(sides, radius) if inertia is None else float(inertia)

@@ -47,10 +47,12 @@ from dice_sweep.effects import measurement_maps
 from dice_sweep.errors import ConfigError, DiceSweepError
 from dice_sweep.geometry import DOWN, support
 from dice_sweep.outputs import CSV, JSON, check_outputs, replace_atomically
-from dice_sweep.physics import STATE_COLUMNS, pack_params
-from dice_sweep.physics.kernel import COUNT_COLUMNS, REC_KIND, REC_T, REC_WIDTH, SEG_END, roll_one, sample_batch
+from dice_sweep.physics import pack_params
+from dice_sweep.physics.layout import STATE_COLUMNS
+from dice_sweep.physics.kernel import roll_one, sample_batch
+# SAMPLE_RECORDS: sample_batch's record buffer; a drop with more records is cut where they run out
+from dice_sweep.physics.layout import COUNT_COLUMNS, REC_KIND, REC_T, REC_WIDTH, ROLL_RECORDS, SAMPLE_RECORDS, SEG_END
 from dice_sweep.physics.params import FP_TMAX, IP_CONTINUE
-from dice_sweep.roll import MAX_RECORDS  # the buffer of the first pass (roll_one)
 
 __all__ = ["DROP_RANGES", "INITIAL_MODES", "SimulatedDrops", "simulate_drops", "write_drops", "run_simulate_drops",
            "parse_noise", "parse_range", "sidecar_path"]
@@ -82,9 +84,6 @@ MAX_TRACKS = 100_000
 MAX_NOISE = 1.0  # --noise sigmas, m, m and rad: a metre of tracking noise on a die is no tracker's
 MIN_FRAMES = 3  # frames in --duration, at least: fewer give the loader no frame rate or motion
 MAX_FRAMES = 5_000_000  # tracks x frames per track, at most (memory: ~200 bytes a frame while simulating)
-# The record buffer inside kernel.sample_batch (rows); tests/measured/test_simulate_drops.py
-# checks that it is still this size. A drop with more records is cut where they run out.
-SAMPLE_BATCH_RECORDS = 4096
 OVERRUN = 1.0  # s of true time the first pass runs past the last frame
 COLUMNS = ("traj", "t", "x", "y", "phi")
 SYNTHETIC_NOTE = ("SYNTHETIC: simulated by dice_sweep's own kernel (dice-sweep simulate-drops), not measured. "
@@ -293,7 +292,7 @@ def _track_ends(fpar, ipar, states, t_true_max):
     the kernel with a large record buffer, run OVERRUN s past the last frame: a roll stopped
     at its time limit in the middle of a pivot reports the pivot's start as its end, and that
     must not pass for a kernel that stopped early."""
-    rec = np.zeros((MAX_RECORDS, REC_WIDTH))
+    rec = np.zeros((ROLL_RECORDS, REC_WIDTH))
     counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
     own = fpar.copy()
     own[FP_TMAX] = t_true_max + OVERRUN
@@ -306,10 +305,10 @@ def _track_ends(fpar, ipar, states, t_true_max):
             end, ending = t_true_max, "duration"
         else:
             end, ending = float(t_end), "stopped"  # stalled, balanced on a corner or out of events
-        if n_rec > SAMPLE_BATCH_RECORDS and rec[SAMPLE_BATCH_RECORDS, REC_T] < end:
-            # sample_batch keeps the first SAMPLE_BATCH_RECORDS segments: beyond the start of
+        if n_rec > SAMPLE_RECORDS and rec[SAMPLE_RECORDS, REC_T] < end:
+            # sample_batch keeps the first SAMPLE_RECORDS segments: beyond the start of
             # the next one its last segment would be extrapolated
-            end, ending = float(rec[SAMPLE_BATCH_RECORDS, REC_T]), "records"
+            end, ending = float(rec[SAMPLE_RECORDS, REC_T]), "records"
         ends.append(end)
         endings.append(ending)
         outcomes.append(int(outcome))

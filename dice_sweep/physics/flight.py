@@ -45,6 +45,8 @@ STALLED = -2.0  # the search did not converge within MAX_SEARCH_STEPS
 MAX_SEARCH_STEPS = 200000
 DRAG_TOL = 1e-13  # x R: position error allowed per Runge-Kutta step with drag
 DRAG_MAX_STEP = 1e-3  # s: longest Runge-Kutta step with drag
+DRAG_MIN_STEP = 1e-8  # x sqrt(R/g): shortest; below it the step is taken whatever its error
+REACH_MARGIN = 1e-6  # x rho_max: a surface farther than the die's reach by this cannot be touched
 
 
 @numba.njit(cache=True)
@@ -129,9 +131,10 @@ def advance_flight(s0, tau, fpar, out):
     done = 0.0
     h = DRAG_MAX_STEP
     tol = DRAG_TOL * fpar[FP_RHO_MAX]
+    h_min = DRAG_MIN_STEP * math.sqrt(fpar[FP_RHO_MAX] / g)
     while done < tau:
         h = min(h, tau - done)
-        if drag_step(cur, h, g, c, out, work) > tol and h > 1e-9:
+        if drag_step(cur, h, g, c, out, work) > tol and h > h_min:
             h *= 0.5
             continue
         cur[:] = out
@@ -207,7 +210,7 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
         h = d + nx * s[0] + ny * s[1]  # distance of the centre of mass from the surface
         hv = nx * s[3] + ny * s[4]
         accel = accel_table if surf == SURF_TABLE else accel_wall
-        if h - rho_max > 1e-6 * rho_max:
+        if h - rho_max > REACH_MARGIN * rho_max:
             # No corner reaches the surface before the COM is within rho_max of it. (The
             # margin keeps this shortcut from taking round-off-sized steps near h = rho_max.)
             step = min(step, safe_step(h - rho_max, hv, accel))
@@ -280,7 +283,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
             h = d + nx * x + ny * y
             hv = nx * vx0 + ny * vy
             accel = g if surf == SURF_TABLE else 0.0
-            if h - rho_max > 1e-6 * rho_max:
+            if h - rho_max > REACH_MARGIN * rho_max:
                 step = min(step, safe_step(h - rho_max, hv, accel))
                 continue
             if not trig:
@@ -372,6 +375,7 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     trial = np.empty(6)
     h_ode = DRAG_MAX_STEP
     ode_tol = DRAG_TOL * fpar[FP_RHO_MAX]
+    h_min = DRAG_MIN_STEP * math.sqrt(fpar[FP_RHO_MAX] / g)
     for _ in range(MAX_SEARCH_STEPS):
         # bound |a| over the next h_ode: speed can grow by at most g h_ode meanwhile
         speed = math.hypot(out[3], out[4]) + g * h_ode
@@ -382,7 +386,7 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
         h = min(step, h_ode)
         if tau + h > tau_max:
             return NO_CONTACT
-        if drag_step(out, h, g, c, trial, work) > ode_tol and h > 1e-9:
+        if drag_step(out, h, g, c, trial, work) > ode_tol and h > h_min:
             h_ode = 0.5 * h
             continue
         out[:] = trial

@@ -39,11 +39,8 @@ from dice_sweep.physics.params import (
     FP_R,
     FP_WALL,
     IP_MODEL,
-    MODEL_PAPER,
 )
-
-C_FALLBACK = 2  # column of counts: paper's law undefined, impulse at the corner used
-C_CLIPS = 4  # column of counts: energy clips
+from dice_sweep.physics.layout import C_CLIPS, C_FALLBACK, MODEL_PAPER
 
 
 @numba.njit(cache=True)

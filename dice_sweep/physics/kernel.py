@@ -50,7 +50,41 @@ from dice_sweep.physics.params import (
     IP_MAX_EVENTS,
     IP_METHOD,
     IP_N,
+)
+from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exported: the kernel's API)
+    C_IMPACTS,
+    C_MULTI,
+    C_PIVOTS,
+    C_WALL,
+    COUNT_COLUMNS,
+    EVENT_IMPACT,
+    EVENT_LIFTOFF,
+    EVENT_START,
     METHOD_FIXED_STEP,
+    PATH_CUT,
+    REC_CHI,
+    REC_CHI_END,
+    REC_CORNER,
+    REC_ENERGY,
+    REC_EVENT,
+    REC_KIND,
+    REC_PX,
+    REC_STATE,
+    REC_T,
+    REC_WIDTH,
+    SAMPLE_RECORDS,
+    SEG_END,
+    SEG_FLIGHT,
+    SEG_PIVOT,
+    SEG_PIVOT_ODE,
+    SEG_SLIDE,
+    STATE_COLUMNS,
+    STATUS_BALANCED,
+    STATUS_DECIDED,
+    STATUS_EVENT_BUDGET,
+    STATUS_NAMES,
+    STATUS_STALLED,
+    STATUS_T_MAX,
 )
 from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
 from dice_sweep.physics.outcome import DECISION_MARGIN, decided_side, decision_bound, rest_height, side_below  # noqa: F401
@@ -67,43 +101,6 @@ from dice_sweep.physics.pivot import (
     below_the_top,
 )
 
-STATE_COLUMNS = ("x0", "y0", "phi0", "vx0", "vy0", "omega0")
-
-STATUS_DECIDED = 0
-STATUS_T_MAX = 1
-STATUS_EVENT_BUDGET = 2
-STATUS_BALANCED = 3
-STATUS_STALLED = 4
-STATUS_NAMES = ("decided", "t_max", "event_budget", "balanced", "stalled")
-
-COUNT_COLUMNS = ("impacts", "wall_impacts", "corner_fallbacks", "pivots", "energy_clips", "multi_contacts")
-C_IMPACTS = 0
-C_WALL = 1
-C_FALLBACK = 2
-C_PIVOTS = 3
-C_CLIPS = 4
-C_MULTI = 5  # impacts of two contacts at once
-
-# Segment records: one row per stretch of motion, enough to re-create the path at any time.
-SEG_FLIGHT = 0
-SEG_PIVOT = 1  # closed-form (conservative, sticking) pivot
-SEG_END = 2
-SEG_PIVOT_ODE = 3  # pivot followed by the ODE (slip, drag, or a loaded die turning back)
-SEG_SLIDE = 4  # lying flat on a side and sliding to a stop under Coulomb friction
-EVENT_START = 0
-EVENT_IMPACT = 1
-EVENT_LIFTOFF = 2
-REC_T = 0
-REC_KIND = 1
-REC_STATE = 2  # six columns: x, y, phi, vx, vy, omega at the start of the segment
-REC_CORNER = 8
-REC_PX = 9
-REC_CHI = 10
-REC_CHI_END = 11
-REC_ENERGY = 12
-REC_EVENT = 13
-REC_WIDTH = 14
-
 # Tolerances, relative to the die's own scales R and sqrt(R/g) (see docs/physics.md).
 GAP_TOL = 1e-12  # x R: an approaching corner this close counts as touching
 MIN_STEP = 1e-9  # x sqrt(R/g): smallest step away from a touching, separating corner
@@ -114,6 +111,10 @@ STICK_HEIGHT = 1e-8  # x R: a corner bouncing lower than this has come to rest (
 # constant tiny amplitude (test_loaded_die_prefers_the_heavy_side ran out of events on it).
 CHATTER_LIMIT = 1000
 REST_ENERGY = 1e-9  # x g rho_max: a decided die this close to lying still is at rest
+RESTING_GAP = 1e-9  # x rho_max: a corner this close above the table rests on it (a flat die)
+DECIDED_SPEED_MARGIN = 1e-9  # relative: a sliding die counts as decided just below the barrier's speed
+SLIDE_STOP = 1e-15  # x sqrt(g rho_max): a slide this slow has stopped (round-off of the deceleration)
+SAMPLE_PAST = 1e-9  # x sqrt(rho_max/g): sample_batch runs a roll this far past its last sample time
 
 
 @numba.njit(cache=True)
@@ -216,7 +217,7 @@ def _corner_resting(s, fpar, corner, c, sn, speed):
     """True if ``corner`` (body angle with cosine c, sine sn) is on the table and moves in or
     out no faster than ``speed``."""
     rx, ry = corner_offset(fpar, corner, c, sn)
-    return not (s[1] + ry > 1e-9 * fpar[FP_RHO_MAX] or abs(s[4] + s[5] * rx) > speed)
+    return not (s[1] + ry > RESTING_GAP * fpar[FP_RHO_MAX] or abs(s[4] + s[5] * rx) > speed)
 
 
 @numba.njit(cache=True)
@@ -255,7 +256,7 @@ def _slide_time(speed, fpar, side, n, to_rest):
     rho_a, _ = corner_geometry(fpar, side)
     rho_b, _ = corner_geometry(fpar, (side + 1) % n)
     spare = fpar[FP_G] * (min(rho_a, rho_b) * (1.0 - DECISION_MARGIN) - rest_height(fpar, n, side))
-    decided_speed = math.sqrt(max(2.0 * spare, 0.0)) * (1.0 - 1e-9)
+    decided_speed = math.sqrt(max(2.0 * spare, 0.0)) * (1.0 - DECIDED_SPEED_MARGIN)
     return max(speed - decided_speed, 0.0) / decel
 
 
@@ -294,7 +295,7 @@ def _slide(s, fpar, tau):
         tau = min(tau, abs(s[3]) / decel)
     s[0] += s[3] * tau - 0.5 * sign * decel * tau * tau
     s[3] -= sign * decel * tau
-    if abs(s[3]) < 1e-15:
+    if abs(s[3]) < SLIDE_STOP * math.sqrt(fpar[FP_G] * fpar[FP_RHO_MAX]):
         s[3] = 0.0
 
 
@@ -306,12 +307,65 @@ def _stopped(decided, status, t_decided, t, nrec):
     return -1, status, math.nan, t, nrec
 
 
+# Inlined (numba IR) into its only caller, like _roll_event: the same code as a call.
+@numba.njit(inline="always")
+def _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided):
+    """The end of a roll that lands flat on side ``flat`` (both its corners down): the die
+    slides under Coulomb friction (or stops at once with unlimited friction, or against a
+    wall) and is decided on that side. Without this phase the two corners traded pivots at
+    one instant until the event budget ran out (docs/validation.md).
+
+    Returns the roll's (outcome, status, t_decided, t_end, n_records), as _roll_event does.
+    """
+    s[1] = rest_height(fpar, n, flat)
+    s[4] = 0.0
+    s[5] = 0.0
+    if math.isinf(fpar[FP_MU]):
+        s[3] = 0.0
+    nrec = _record(rec, nrec, t, SEG_SLIDE, s, flat, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
+    to_decision = _slide_time(abs(s[3]), fpar, flat, n, False)
+    tau = _slide_time(abs(s[3]), fpar, flat, n, True) if keep_going else to_decision
+    to_wall = _time_to_wall(s, fpar, n)
+    tau = min(tau, t_max - t, to_wall)
+    _slide(s, fpar, tau)
+    if tau == to_wall:
+        s[3] = 0.0  # a plastic stop against the wall
+    if decided < 0:
+        decided = flat
+        t_decided = t + min(to_decision, tau)
+    t += tau
+    if keep_going and fpar[FP_MU] > 0.0:
+        s[3] = 0.0
+    nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
+    return decided, STATUS_DECIDED, t_decided, t, nrec
+
+
 # Inlined (numba IR) into its only caller, _roll_into, itself inlined into roll_one, roll_batch
 # and sample_batch: as a call it took eight array arguments, a reference count up and down for
 # each on every roll. The fixed overhead of a roll fell by about 40 % (docs/profile.md, change
 # 5); results bit for bit the same.
 @numba.njit(inline="always")
 def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
+    """One roll by events (docs/physics.md): from the state ``s`` (centre of mass, changed in
+    place) to a decided side, or to a stop with a status.
+
+    Each pass of the loop finds the next event and acts on it:
+
+    - in flight: the next contact of a corner with the table or a wall (exact without drag,
+      by the flight search), then the impact it makes (with a second contact arriving within
+      the contact window: physics/multi_contact.py);
+    - pivoting on a corner (a bounce too low to leave the table: the limit of its Zeno run):
+      the pivot ends by lift-off, by a second corner landing, or by the decision (closed form
+      when it sticks without drag, else the pivot ODE);
+    - a landing flat on a side ends the roll by sliding (:func:`_lie_flat`).
+
+    The side is decided once the energy is below the barrier of the side below the centre of
+    mass (outcome.decided_side); with ``ipar[IP_CONTINUE]`` the roll goes on to rest.
+    ``rec`` receives one record per segment (layout.REC_*); ``counts`` the event tallies;
+    ``after``, ``out`` and ``hit`` are scratch arrays (float64[6], float64[5], int64[2]).
+
+    Returns (outcome, status, t_decided, t_end, n_records).
+    """
     n = ipar[IP_N]
     g = fpar[FP_G]
     t_max = fpar[FP_TMAX]
@@ -403,30 +457,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts)
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
-            # Lying flat on a side, both corners down: the die slides (finite friction) or
-            # stops (unlimited friction) on that side; without this phase the two corners
-            # traded pivots at one instant until the event budget ran out (docs/validation.md).
-            s[1] = rest_height(fpar, n, flat)
-            s[4] = 0.0
-            s[5] = 0.0
-            if math.isinf(fpar[FP_MU]):
-                s[3] = 0.0
-            nrec = _record(rec, nrec, t, SEG_SLIDE, s, flat, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
-            to_decision = _slide_time(abs(s[3]), fpar, flat, n, False)
-            tau = _slide_time(abs(s[3]), fpar, flat, n, True) if keep_going else to_decision
-            to_wall = _time_to_wall(s, fpar, n)
-            tau = min(tau, t_max - t, to_wall)
-            _slide(s, fpar, tau)
-            if tau == to_wall:
-                s[3] = 0.0  # a plastic stop against the wall
-            if decided < 0:
-                decided = flat
-                t_decided = t + min(to_decision, tau)
-            t += tau
-            if keep_going and fpar[FP_MU] > 0.0:
-                s[3] = 0.0
-            nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
-            return decided, STATUS_DECIDED, t_decided, t, nrec
+            return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
         pivoting = surf == SURF_TABLE and (u_n < stick_speed or chatter >= CHATTER_LIMIT)
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
@@ -637,15 +668,20 @@ def sample_batch(fpar, ipar, states, times, starts, out, out_outcome):
     omega) go to the same rows of ``out``. Set ipar[IP_CONTINUE] = 1 to follow dice past the
     decision. Each roll stops at its last sample time (or at t_max if that is earlier): a fit
     samples short pieces of track, and what follows the last sample is never read.
+
+    A roll keeps SAMPLE_RECORDS segments. One that fills them before it stops has outcome
+    PATH_CUT: its samples after the start of the last kept segment assume that segment goes on,
+    which a caller must not trust (the fit refuses; simulate-drops cuts its track there).
     """
-    rec = np.empty((4096, REC_WIDTH))
+    rec = np.empty((SAMPLE_RECORDS, REC_WIDTH))
     counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
     s, after, roll_pivot_out, hit = np.empty(6), np.empty(6), np.empty(5), np.empty(2, dtype=np.int64)
     own = fpar.copy()  # per-roll t_max without touching the caller's array
+    past = SAMPLE_PAST * math.sqrt(fpar[FP_RHO_MAX] / fpar[FP_G])
     for i in range(states.shape[0]):
         if starts[i + 1] > starts[i]:
             # just past the last sample, so that it falls inside a simulated segment
-            own[FP_TMAX] = min(fpar[FP_TMAX], times[starts[i + 1] - 1] + 1e-9)
+            own[FP_TMAX] = min(fpar[FP_TMAX], times[starts[i + 1] - 1] + past)
         else:
             own[FP_TMAX] = fpar[FP_TMAX]
         outcome, _, _, _, n_rec = _roll_into(own, ipar, states[i], rec, counts, s, after, roll_pivot_out, hit)
@@ -653,3 +689,5 @@ def sample_batch(fpar, ipar, states, times, starts, out, out_outcome):
         lo = starts[i]
         hi = starts[i + 1]
         sample_records(own, ipar, rec, n_rec, times[lo:hi], out[lo:hi])
+        if n_rec == SAMPLE_RECORDS and rec[n_rec - 1, REC_KIND] != SEG_END:
+            out_outcome[i] = PATH_CUT  # the records ran out before the roll stopped

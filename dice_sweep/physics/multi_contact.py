@@ -38,7 +38,8 @@ import numpy as np
 
 from dice_sweep.physics.flight import corner_offset, surface_frame
 from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, beta_normal_at, corner_normal_velocity, paper_law, resolve_impact
-from dice_sweep.physics.params import FP_ALPHA, FP_BT, FP_INERTIA, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_MODEL, MODEL_PAPER
+from dice_sweep.physics.params import FP_ALPHA, FP_BT, FP_INERTIA, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_MODEL
+from dice_sweep.physics.layout import MODEL_PAPER
 
 MAX_ROWS = 4  # two normal rows and at most two tangential rows
 # Relative slack of the admissibility tests: round-off of the 4 x 4 solves, not physics.

@@ -15,6 +15,8 @@ import math
 import numpy as np
 
 from dice_sweep.config import DEFAULT_CONTACT_WINDOW, MAX_EVENTS
+from dice_sweep.geometry import inertia_ratio
+from dice_sweep.physics.layout import METHODS, MODELS
 
 # fpar indices (SI units)
 FP_R = 0  # circumradius, m
@@ -45,19 +47,6 @@ IP_MAX_EVENTS = 3  # event budget per roll
 IP_CONTINUE = 4  # 1: keep simulating after the decision, until rest or t_max (for fitting)
 N_IPAR = 5
 
-MODEL_PAPER = 0
-MODEL_RIGID = 1
-MODELS = {"paper": MODEL_PAPER, "rigid": MODEL_RIGID}
-METHOD_EVENT = 0
-METHOD_FIXED_STEP = 1
-METHODS = {"event": METHOD_EVENT, "fixed_step": METHOD_FIXED_STEP}
-
-
-def inertia_ratio(sides):
-    """alpha = I / (M R^2) of a uniform regular n-gon plate about its centre (Smith 2014, eq. 25)."""
-    s = math.sin(math.pi / sides)
-    c = math.cos(math.pi / sides)
-    return s * s / 6.0 + c * c / 2.0
 
 
 def _effects_values(cfg):

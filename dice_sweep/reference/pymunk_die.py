@@ -492,7 +492,7 @@ def compare_with_kernel(cfg, *, dt=1e-4, settings=PymunkSettings()):
     -------
     MapComparison
     """
-    from dice_sweep.physics import COUNT_COLUMNS  # the numba kernel: only needed here
+    from dice_sweep.physics.layout import COUNT_COLUMNS
     from dice_sweep.sweep import SweepJob
 
     job = SweepJob.from_config(cfg)
@@ -656,7 +656,7 @@ def kernel_flat_impacts(cfg, comparison):
     """
     if MULTI_CONTACTS in comparison.kernel_counts:
         return comparison.kernel_counts[MULTI_CONTACTS] > 0, f"the kernel's {MULTI_CONTACTS} count > 0"
-    from dice_sweep.physics.kernel import EVENT_IMPACT, REC_EVENT, REC_KIND, REC_T, SEG_SLIDE
+    from dice_sweep.physics.layout import EVENT_IMPACT, REC_EVENT, REC_KIND, REC_T, SEG_SLIDE
     from dice_sweep.roll import roll_config
 
     tolerance = FLAT_IMPACT_TIME * math.sqrt(cfg.die.circumradius / cfg.world.g)

@@ -18,6 +18,7 @@ from click.testing import CliRunner
 from dice_sweep.cli import main, simulate_drops_command
 from dice_sweep.config import parse_config
 from dice_sweep.measured import simulate
+from dice_sweep.physics import layout
 from dice_sweep.measured.flights import estimate_noise
 from dice_sweep.measured.simulate import DROP_RANGES, REST_TAIL, run_simulate_drops, simulate_drops
 from dice_sweep.measured.tracks import load_tracks
@@ -98,13 +99,14 @@ def test_a_pivot_running_past_the_duration_is_not_a_kernel_that_stopped_early():
 
 def test_sample_batch_record_buffer_is_the_size_simulate_assumes():
     source = inspect.getsource(sample_batch.py_func)
-    assert f"np.empty(({simulate.SAMPLE_BATCH_RECORDS}, REC_WIDTH))" in source
+    assert "np.empty((SAMPLE_RECORDS, REC_WIDTH))" in source  # the layout's constant, not a number
+    assert simulate.SAMPLE_RECORDS is layout.SAMPLE_RECORDS
 
 
 def test_a_drop_with_more_records_than_sample_batch_keeps_is_cut_not_extrapolated(monkeypatch):
     cfg = config()
     full = simulate_drops(cfg, 4, seed=5, **CLEAN)
-    monkeypatch.setattr(simulate, "SAMPLE_BATCH_RECORDS", 3)  # as if the buffer held 3 segments
+    monkeypatch.setattr(simulate, "SAMPLE_RECORDS", 3)  # as if the buffer held 3 segments
     cut = simulate_drops(cfg, 4, seed=5, **CLEAN)
     assert cut.ending == ["records"] * 4
     for rows_cut, rows_full in zip(tracks_of(cut), tracks_of(full)):

@@ -16,7 +16,8 @@ from dice_sweep.physics.impact import (
     specific_energy,
     stick_corner,
 )
-from dice_sweep.physics.params import FP_INERTIA, inertia_ratio
+from dice_sweep.geometry import inertia_ratio
+from dice_sweep.physics.params import FP_INERTIA
 from tests.physics.conftest import make_params
 
 RADIUS = 0.0134

@@ -17,7 +17,7 @@ from dice_sweep.physics.kernel import (
     STATUS_EVENT_BUDGET,
     side_below,
 )
-from dice_sweep.physics.params import inertia_ratio
+from dice_sweep.geometry import inertia_ratio
 from dice_sweep.roll import sample_path
 from tests.physics.conftest import TABLE1_RADIUS, make_config, make_params, random_states, run_batch, run_one
 

@@ -1,4 +1,4 @@
-"""Tests of dice_sweep.physics._fast_start: the CLI's skipping of numba's BLAS probe.
+"""Tests of dice_sweep.startup: the CLI's skipping of numba's BLAS probe.
 
 Each runs in a fresh interpreter: the probe happens once per process.
 """
@@ -12,10 +12,10 @@ import numpy as np
 from dice_sweep.config import load_config
 from dice_sweep.roll import roll_config
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[1]
 CHILD = """
 import sys, json
-from dice_sweep.physics._fast_start import skip_numba_blas_probe
+from dice_sweep.startup import skip_numba_blas_probe
 took = skip_numba_blas_probe()
 from dice_sweep.config import load_config
 from dice_sweep.roll import roll_config
@@ -40,6 +40,6 @@ def test_kernel_runs_without_scipy_linalg_and_gives_the_same_roll():
 
 
 def test_probe_is_not_skipped_once_numba_has_loaded_its_registry():
-    code = "import numba.np.arraymath\nfrom dice_sweep.physics._fast_start import skip_numba_blas_probe\nprint(skip_numba_blas_probe())"
+    code = "import numba.np.arraymath\nfrom dice_sweep.startup import skip_numba_blas_probe\nprint(skip_numba_blas_probe())"
     child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert child.stdout.strip() == "False"

@@ -1,5 +1,8 @@
-"""Where numba caches this package's kernels, and what makes a cached copy current.
+"""What a process does before and while it loads the kernels (issue 16): where numba caches
+them, when a compile is announced, and skipping numba's BLAS probe in the CLI.
 
+Where numba caches the kernels, and what makes a cached copy current
+--------------------------------------------------------------------
 numba's own locators key each function's cache on that function's file only, so a change in
 ``flight.py`` left ``kernel.roll_batch`` loading a stale machine-code copy that still called
 the old flight code (seen while developing the kernel); and with ``NUMBA_CACHE_DIR`` the
@@ -9,19 +12,30 @@ kernels are defined, keys every kernel's cache on one hash of all physics source
 it in one directory that does not depend on where the package lives:
 
 - ``$NUMBA_CACHE_DIR/dice_sweep_physics`` when ``NUMBA_CACHE_DIR`` is set (what a CI job
-  keeps between runs: docs/performance.md, "Keeping the compiled kernel between CI jobs");
+  keeps between runs: docs/cold_start.md, "Keeping the compiled kernel between CI jobs");
 - else ``dice_sweep/physics/__pycache__`` when writable, else numba's user-wide cache
   directory.
 
 A cache written from other sources is ignored and overwritten, never loaded.
+
+Skipping numba's BLAS probe in processes that only run this package's kernels
+-----------------------------------------------------------------------------
+The first time numba loads a cached function it imports ``numba.np.arraymath``, which probes
+for BLAS by importing ``scipy.linalg`` when SciPy is installed: 0.3 to 0.5 s, about a third
+of a warm ``dice-sweep roll`` (found with cProfile of ``SweepJob.warm_up``). The kernels here
+use no BLAS (no np.dot, no np.linalg), so the CLI's ``roll`` and ``sweep`` commands tell
+numba there is none. Not done on import of the library: in a user's own process, numba code
+of theirs may need BLAS.
 """
 
 import functools
 import hashlib
+import importlib.abc
 import os
+import sys
 from pathlib import Path
 
-_PHYSICS_DIR = Path(__file__).resolve().parent
+_PHYSICS_DIR = Path(__file__).resolve().parent / "physics"
 CACHE_SUBDIR = "dice_sweep_physics"
 
 
@@ -71,7 +85,7 @@ def _locator_class():
 
         @classmethod
         def from_function(cls, py_func, py_file):
-            if not getattr(py_func, "__module__", "").startswith("dice_sweep.physics."):
+            if not getattr(py_func, "__module__", "").startswith("dice_sweep.physics."):  # only the kernels
                 return None
             for path in cache_directories():
                 locator = cls(py_func, path)
@@ -132,3 +146,28 @@ def notify_first_compile(callback):
             pass
 
     event.register("numba:compile", _FirstCompile())
+
+_BLOCKED = ("scipy.linalg", "scipy.linalg.cython_blas")
+
+
+class _NoScipyLinalg(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        if name in _BLOCKED:
+            raise ImportError(f"{name}: not imported while numba probes for BLAS (dice_sweep fast start)")
+        return None
+
+
+def skip_numba_blas_probe() -> bool:
+    """Import numba's array-math registry with scipy.linalg hidden; True if that took effect.
+
+    Does nothing (False) when the registry or scipy.linalg is imported already.
+    """
+    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
+        return False
+    finder = _NoScipyLinalg()
+    sys.meta_path.insert(0, finder)
+    try:
+        import numba.np.arraymath  # noqa: F401  (sets its _HAVE_BLAS = False)
+    finally:
+        sys.meta_path.remove(finder)
+    return True
