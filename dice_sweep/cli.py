@@ -128,7 +128,7 @@ def _at_least_one(ctx, param, value):
 
 
 def _workers(ctx, param, value):
-    from dice_sweep.sweep import worker_count
+    from dice_sweep.executor import worker_count
 
     return None if value is None else worker_count(value)
 

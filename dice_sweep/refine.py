@@ -28,10 +28,8 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import signal
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from tqdm import tqdm
@@ -46,9 +44,8 @@ from dice_sweep.sweep import (
     SweepInterrupted,
     SweepJob,
     TileGrid,
-    _process_context,
-    worker_count,
 )
+from dice_sweep.executor import ordered_map, worker_count
 
 CHUNK_ROLLS = 4096  # rolls per batch handed to a worker (and per progress-bar step)
 MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse grid
@@ -57,22 +54,21 @@ PRIOR_GROWTH = 0.5  # change of the boundary share per level before two levels a
 
 # --- rolling arbitrary states, in parallel ------------------------------------------------
 
-_worker_job: SweepJob | None = None
 
+class _ChunkRoll:
+    """Picklable task: item k is ``job.roll`` of chunk k."""
 
-def _init_worker(job: SweepJob) -> None:
-    # Ctrl-C reaches the whole process group; only the parent handles it (as in sweep.py)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    global _worker_job
-    _worker_job = job
+    def __init__(self, job: SweepJob, chunks):
+        self.job = job
+        self.chunks = chunks
 
-
-def _roll_in_worker(states: np.ndarray) -> tuple[np.ndarray, ...]:
-    return _worker_job.roll(states)
+    def __call__(self, k: int) -> tuple[np.ndarray, ...]:
+        return self.job.roll(self.chunks[k])
 
 
 def roll_states(job: SweepJob, states, workers: int = 1, on_chunk=None) -> tuple[np.ndarray, ...]:
-    """``roll_batch`` on any starts, cut into chunks of ``CHUNK_ROLLS`` over ``workers`` processes.
+    """``roll_batch`` on any starts, cut into chunks of ``CHUNK_ROLLS`` over ``workers`` processes
+    (the one worker pool, :func:`dice_sweep.executor.ordered_map`).
 
     Parameters
     ----------
@@ -97,28 +93,11 @@ def roll_states(job: SweepJob, states, workers: int = 1, on_chunk=None) -> tuple
     job = job.with_engine_for(states, len(states), min(workers, max(1, len(chunks))))
     if not chunks:
         return job.roll(states)
-    results = []
-    for chunk, result in zip(chunks, _rolled_chunks(job, chunks, workers)):
-        results.append(result)
-        if on_chunk is not None:
-            on_chunk(len(chunk))
+    if workers > 1 and len(chunks) > 1:
+        job.warm_up()  # compile before forking, so that every worker inherits the kernel
+    done = None if on_chunk is None else (lambda k: on_chunk(len(chunks[k])))
+    results = ordered_map(_ChunkRoll(job, chunks), len(chunks), workers, on_result=done)
     return tuple(np.concatenate(parts) for parts in zip(*results))
-
-
-def _rolled_chunks(job: SweepJob, chunks, workers: int):
-    """Yield ``job.roll(chunk)`` for each chunk, in order, computed by ``workers`` processes."""
-    if workers == 1 or len(chunks) == 1:
-        yield from map(job.roll, chunks)
-        return
-    job.warm_up()  # compile before forking, so that every worker inherits the kernel
-    executor = ProcessPoolExecutor(
-        min(workers, len(chunks)), mp_context=_process_context(), initializer=_init_worker, initargs=(job,)
-    )
-    try:
-        yield from executor.map(_roll_in_worker, chunks)
-    finally:
-        # on Ctrl-C or an error, drop the chunks not started rather than roll them all first
-        executor.shutdown(wait=True, cancel_futures=True)
 
 
 # --- the quadtree -------------------------------------------------------------------------

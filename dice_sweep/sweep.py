@@ -10,18 +10,10 @@ bitwise identical for any worker count, shard split and tile order.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import dataclasses
-import multiprocessing
-import multiprocessing.connection
-import os
-import pickle
-import signal
 import sys
-import threading
 import time
-import traceback
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +23,7 @@ from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
 from dice_sweep.engine import ENGINE_NUMBA, ENGINE_PLAIN, PROBE_ROLLS, sweep_engine
+from dice_sweep.executor import EXECUTORS, StopRequest, tile_results, worker_count
 from dice_sweep.engine import run as engine_run
 from dice_sweep.physics import pack_params, roll_batch
 from dice_sweep.physics.layout import COUNT_COLUMNS, STATE_COLUMNS, STATUS_NAMES
@@ -324,172 +317,6 @@ class SweepJob:
         self.roll(self.base_state[np.newaxis, :].copy())
 
 
-# --- worker processes --------------------------------------------------------------------
-
-_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
-_STOP_POLL_SECONDS = 0.2  # how often the parent looks for Ctrl-C while workers compute
-
-
-def _die_with_parent(parent_pid: int) -> None:
-    # A parent killed by SIGKILL cannot stop its workers, which would compute for nobody;
-    # on Linux the kernel can kill them when the parent goes.
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL)
-    except (OSError, AttributeError):
-        return
-    if os.getppid() != parent_pid:  # the parent died before prctl took effect
-        os._exit(1)
-
-
-def _process_context():
-    # fork shares the kernel compiled in the parent; elsewhere (macOS, Windows) spawn is safe.
-    method = "fork" if sys.platform.startswith("linux") else "spawn"
-    return multiprocessing.get_context(method)
-
-
-class _StopRequest:
-    """Ctrl-C as a flag, checked between tiles, while a sweep runs in the main thread.
-
-    A KeyboardInterrupt raised at an arbitrary point can land in a weakref callback, where
-    Python ignores it, or in the middle of an HDF5 write; a flag acts only where we look at
-    it. A second Ctrl-C goes to the previous handler and so acts at once.
-    """
-
-    def __init__(self):
-        self.requested = False
-        self._installed = False
-        self._previous = signal.SIG_DFL
-
-    def __enter__(self) -> "_StopRequest":
-        if threading.current_thread() is threading.main_thread():
-            previous = signal.signal(signal.SIGINT, self._handle)
-            self._previous = signal.SIG_DFL if previous is None else previous
-            self._installed = True
-        return self
-
-    def _handle(self, signum, frame) -> None:
-        self.requested = True
-        signal.signal(signal.SIGINT, self._previous)
-
-    def __exit__(self, *exc_info) -> None:
-        if self._installed:
-            signal.signal(signal.SIGINT, self._previous)
-
-
-class _WorkerFailed:
-    """What a worker sends instead of a tile when computing it raised."""
-
-    def __init__(self, error: BaseException):
-        self.traceback = traceback.format_exc()
-        try:
-            pickle.dumps(error)
-            self.error = error
-        except Exception:  # an error that cannot cross the pipe is sent as its text
-            self.error = RuntimeError(f"{type(error).__name__}: {error}")
-
-
-def _worker_main(job: SweepJob, todo: Sequence[int], next_slot, results, parent_pid: int) -> None:
-    """A worker process: take the next tile of ``todo`` until none is left, send each one's
-    (index, encoded maps) to the parent on ``results``."""
-    # Ctrl-C reaches the whole process group; only the parent handles it (by stopping us).
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _die_with_parent(parent_pid)
-    try:
-        while True:
-            with next_slot.get_lock():
-                slot = next_slot.value
-                next_slot.value = slot + 1
-            if slot >= len(todo):
-                return
-            results.send((todo[slot], job.compute_encoded_tile(todo[slot])))
-    except BaseException as error:  # noqa: BLE001 - every failure is reported to the parent
-        results.send(_WorkerFailed(error))
-    finally:
-        results.close()
-
-
-@contextlib.contextmanager
-def _tile_results(job: SweepJob, todo: Sequence[int], workers: int, stop: _StopRequest):
-    """Yield an iterator of (tile index, maps) in completion order, computed by ``workers``.
-
-    One worker computes in this process. More are forked processes that take tiles from a
-    shared counter and each send their results on a pipe of their own: the parent has no
-    thread of its own to feed, and spends its CPU (which it shares with the workers) only on
-    receiving and writing tiles (concurrent.futures.ProcessPoolExecutor, used before, spent
-    more of it in its threads and queues than the writes took; scripts/bench.py reports the
-    parent's CPU). The iterator ends early once ``stop`` is requested. On any
-    exception in the ``with`` body the workers are terminated at once rather than left to
-    finish their tiles.
-    """
-    if workers == 1 or len(todo) <= 1:
-        yield ((index, job.compute_encoded_tile(index)) for index in todo if not stop.requested)
-        return
-    context = _process_context()
-    next_slot = context.Value("q", 0)
-    processes, pipes = [], []
-    try:
-        for _ in range(min(workers, len(todo))):
-            receiving, sending = context.Pipe(duplex=False)
-            process = context.Process(
-                target=_worker_main, args=(job, list(todo), next_slot, sending, os.getpid()), daemon=True
-            )
-            process.start()
-            sending.close()  # the worker's end: once every holder closes it, recv() sees EOF
-            processes.append(process)
-            pipes.append(receiving)
-        yield _received(dict(zip(pipes, processes)), stop)
-    except BaseException:
-        for process in processes:
-            process.terminate()
-        raise
-    finally:
-        for process in processes:
-            process.join()
-        for pipe in pipes:
-            pipe.close()
-
-
-def _received(workers: dict, stop: _StopRequest) -> Iterator:
-    """Tiles from the workers' pipes ({pipe: process}) as they arrive, until every worker
-    has closed its pipe or ``stop`` is requested."""
-    while workers and not stop.requested:
-        for pipe in multiprocessing.connection.wait(list(workers), timeout=_STOP_POLL_SECONDS):
-            if stop.requested:  # stop at once: tiles computed but not yet written are lost
-                return
-            try:
-                message = pipe.recv()
-            except EOFError:  # the worker ran out of tiles, or died
-                process = workers.pop(pipe)
-                process.join()
-                if process.exitcode != 0:
-                    raise DiceSweepError(
-                        f"a worker process ended with exit code {process.exitcode} (killed?); "
-                        "the tiles written are kept: run the same command with --resume to finish"
-                    ) from None
-                continue
-            if isinstance(message, _WorkerFailed):
-                raise message.error from _RemoteTraceback(message.traceback)
-            yield message
-
-
-class _RemoteTraceback(Exception):
-    """The traceback of an error raised in a worker process, as its text."""
-
-    def __str__(self) -> str:
-        return "\n" + self.args[0]
-
-
-def _executor_results(executor: str, scheduler: str | None, job: SweepJob, todo, workers, stop):
-    if executor == "dask" and todo:
-        from dice_sweep.distributed import dask_tile_results
-
-        return dask_tile_results(job, todo, stop, scheduler=scheduler, workers=workers)
-    return _tile_results(job, todo, workers, stop)
-
-
 # --- sweep -------------------------------------------------------------------------------
 
 
@@ -525,24 +352,6 @@ def _check_shard(shard) -> tuple[int, int]:
     return shard_index, shard_count
 
 
-def default_workers() -> int:
-    """Default worker count: the cores this process may use.
-
-    The CPU affinity mask, where the OS has one, rather than ``os.cpu_count()``: under SLURM,
-    taskset or a container limit it is what the job was given.
-
-    Returns
-    -------
-    int
-    """
-    if hasattr(os, "sched_getaffinity"):
-        return len(os.sched_getaffinity(0))
-    return os.cpu_count() or 1
-
-
-EXECUTORS = ("local", "dask")
-
-
 def _check_executor(executor: str, scheduler: str | None, workers: int | None) -> int | None:
     """The worker count to use (None: the dask scheduler's workers), or a one-line error."""
     if executor not in EXECUTORS:
@@ -554,17 +363,6 @@ def _check_executor(executor: str, scheduler: str | None, workers: int | None) -
     if scheduler is not None:
         return None
     return worker_count(workers)
-
-
-MAX_WORKERS = 1024  # worker processes; more would fork one per tile of a large grid
-
-
-def worker_count(workers: int | None) -> int:
-    """``workers``, or :func:`default_workers` for None; a one-line error outside [1, MAX_WORKERS]."""
-    workers = default_workers() if workers is None else int(workers)
-    if not 1 <= workers <= MAX_WORKERS:
-        raise DiceSweepError(f"--workers: {workers} is outside the allowed range [1, {MAX_WORKERS}]")
-    return workers
 
 
 def _sweep_axis(axis, values) -> SweepAxis:
@@ -717,8 +515,8 @@ def run_sweep(
             job.warm_up()  # before forking, so that every worker inherits the compiled kernel
             kernel_seconds = time.perf_counter() - loading
         with (
-            _StopRequest() as stop,  # before forking: workers never see the default handler
-            _executor_results(executor, scheduler, job, todo, workers, stop) as results,
+            StopRequest() as stop,  # before forking: workers never see the default handler
+            tile_results(job, todo, workers, stop, executor=executor, scheduler=scheduler) as results,
             _open_output(path, header, tiles.count, resuming) as sweep_file,
             tqdm(
                 total=rolls_in_shard, initial=rolls_in_shard - rolls_todo, unit=" rolls",

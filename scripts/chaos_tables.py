@@ -45,7 +45,8 @@ from dice_sweep.plotting import (
 )
 from dice_sweep.refine import compare_with_full, run_refined_sweep
 from dice_sweep.storage import read_refinement_maps, read_sweep
-from dice_sweep.sweep import SweepJob, default_workers, run_sweep
+from dice_sweep.executor import default_workers
+from dice_sweep.sweep import SweepJob, run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "out" / "chaos"

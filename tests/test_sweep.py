@@ -333,11 +333,12 @@ def test_an_error_in_a_worker_reaches_the_parent_with_its_traceback(cfg):
     the worker's traceback, instead of a tile to write."""
     import dataclasses
 
-    from dice_sweep.sweep import SweepJob, _StopRequest, _tile_results
+    from dice_sweep.executor import StopRequest, tile_results
+    from dice_sweep.sweep import SweepJob
 
     broken = dataclasses.replace(SweepJob.from_config(cfg, TILE), fpar=None)  # roll_batch refuses None
-    with pytest.raises(Exception) as raised, _StopRequest() as stop:
-        with _tile_results(broken, list(range(N_TILES)), 2, stop) as results:
+    with pytest.raises(Exception) as raised, StopRequest() as stop:
+        with tile_results(broken, list(range(N_TILES)), 2, stop) as results:
             next(iter(results))
     assert not isinstance(raised.value, DiceSweepError)
     assert "compute_encoded_tile" in str(raised.value.__cause__)

@@ -36,6 +36,7 @@ import numpy as np
 
 from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.executor import default_workers, ordered_map
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.fit import relative_gain as relative_fall
 from dice_sweep.measured.flights import estimate_noise
@@ -618,21 +619,20 @@ def _try_pair(task):
     return _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng)
 
 
+class _Apply:
+    """Picklable task: item k is ``function(tasks[k])``."""
+
+    def __init__(self, function, tasks):
+        self.function = function
+        self.tasks = list(tasks)
+
+    def __call__(self, k):
+        return self.function(self.tasks[k])
+
+
 def _map(function, tasks, workers):
-    """``function`` over ``tasks`` in order, in ``workers`` forked processes (1: here)."""
-    if workers <= 1 or len(tasks) <= 1:
-        return [function(task) for task in tasks]
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)), mp_context=multiprocessing.get_context("fork")) as pool:
-        return list(pool.map(function, tasks))
-
-
-def default_workers():
-    import os
-
-    return max(1, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1))
+    """``function`` over ``tasks`` in order, in ``workers`` processes of the one worker pool (1: here)."""
+    return ordered_map(_Apply(function, tasks), len(tasks), workers)
 
 
 def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=FOLDS, candidates=None, max_chain=MAX_CHAIN,
