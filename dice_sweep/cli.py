@@ -300,7 +300,7 @@ def measure(h5_path, json_path, png_dir, box_size):
     \b
     Example: dice-sweep measure out/fig08.h5 --json out/fig08_chaos.json --png out/fig08_chaos
     """
-    from dice_sweep.chaos import run_measure
+    from dice_sweep.app.chaos import run_measure
 
     click.echo(run_measure(h5_path, box_size=box_size, json_path=json_path, png_dir=png_dir).describe())
 
@@ -328,7 +328,7 @@ def control(h5_path, sigmas, method, samples, points, seed, workers, json_path, 
     \b
     Example: dice-sweep control out/fig08.h5 --sigma y0=0.002 --sigma omega0=0.5 --png out/control
     """
-    from dice_sweep.chaos import run_control
+    from dice_sweep.app.chaos import run_control
 
     control_map = run_control(
         h5_path, sigmas, json_path=json_path, png_dir=png_dir, npz_path=npz_path,

@@ -23,6 +23,7 @@ __all__ = [
     "support",
     "lowest_corner_height",
     "side_below",
+    "clear_of_surfaces",
 ]
 
 DOWN = -0.5 * np.pi  # angle of the vertical ray pointing down from the centre, rad
@@ -216,3 +217,17 @@ def side_below(sides, phi):
     # mod and rounding can land exactly on n at the last corner: wrap it to side 0
     index = np.floor(turns).astype(np.int64) % sides
     return index if index.ndim else int(index)
+
+
+def clear_of_surfaces(sides, circumradius, separation, states):
+    """bool (N,): starts (rows x, y, phi, ...) with no corner inside the table, nor inside a
+    wall when ``separation`` (m) is not None: the die's reach along each surface's normal
+    (:func:`support`) fits in the room its centre leaves. The config checks its own starts
+    the same way (with a round-off tolerance, to name the value that fails)."""
+    states = np.asarray(states, dtype=float)
+    x, y, phi = states[:, 0], states[:, 1], states[:, 2]
+    clear = y >= support(sides, circumradius, phi, DOWN)
+    if separation is not None:
+        half = 0.5 * separation
+        clear &= (x + support(sides, circumradius, phi, 0.0) <= half) & (x - support(sides, circumradius, phi, np.pi) >= -half)
+    return clear

@@ -6,6 +6,7 @@ runs rather than after it. Imports nothing heavy: the image formats come from
 :func:`dice_sweep.plotting.image_formats`, asked for only by commands that draw.
 """
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -112,3 +113,11 @@ def replace_atomically(path, write):
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def write_json(path, data, *, indent=2) -> Path:
+    """Write ``data`` as indented JSON (and a newline), the whole file or nothing
+    (:func:`replace_atomically`); return the path. The one JSON writer of the commands."""
+    text = json.dumps(data, indent=indent) + "\n"
+    replace_atomically(path, lambda file: file.write(text.encode("utf-8")))
+    return Path(path)

@@ -548,6 +548,30 @@ def animate_roll(cfg, report, gif_path, *, fps=30, max_frames=MAX_ANIMATION_FRAM
 PANEL_FIGSIZE = (6, 5)  # inches per panel of a row of maps
 
 
+def axis_labels(sweep) -> tuple[str, str]:
+    """(x, y) axis labels of a sweep (dice_sweep.storage.SweepData): parameter and unit."""
+    return axis_label(sweep.x.param, sweep.x.unit), axis_label(sweep.y.param, sweep.y.unit)
+
+
+def box_entropy_panel(sweep, entropy, title=None) -> dict:
+    """Keyword arguments of :func:`draw_scalar_map` for a map of box entropies.
+
+    Parameters
+    ----------
+    sweep : dice_sweep.storage.SweepData
+        The sweep the entropies were measured on (axes, units, sides).
+    entropy : dice_sweep.chaos.BasinEntropy
+    title : str, optional
+        Default: box size, Sb and Sbb.
+    """
+    rows, cols = entropy.used_shape
+    x_label, y_label = axis_labels(sweep)
+    extent = (sweep.x.lo, sweep.x.lo + cols * sweep.x.cell_width, sweep.y.lo, sweep.y.lo + rows * sweep.y.cell_width)
+    title = title or f"box entropy, {entropy.box_size} x {entropy.box_size} pixels: Sb = {entropy.sb:.3f}, Sbb = {entropy.sbb:.3f}"
+    return dict(values=entropy.box_entropy, x_values=None, y_values=None, x_label=x_label, y_label=y_label,
+                title=title, label="nats", vmin=0.0, vmax=math.log(sweep.sides + 1), cmap="magma", extent=extent)
+
+
 def _panel_figure(panels, dpi, panel_size=None):
     """A Figure with one axes per panel in a row (each ``panel_size`` inches, default
     PANEL_FIGSIZE), and the list of axes."""

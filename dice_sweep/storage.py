@@ -76,6 +76,11 @@ class SweepAxis:
     lo: float
     hi: float
 
+    @property
+    def cell_width(self) -> float:
+        """Width of a cell along the axis, in its unit: (hi - lo) / cells."""
+        return (self.hi - self.lo) / len(self.values)
+
 
 @dataclasses.dataclass(frozen=True)
 class SweepHeader:

@@ -21,7 +21,6 @@ import numpy as np
 from dice_sweep.chaos import (
     SMOOTH_BOUNDARY_SBB,
     basin_entropy,
-    box_entropy_panel,
     cantor_map,
     checkerboard_map,
     compare_control,
@@ -37,6 +36,7 @@ from dice_sweep.chaos import (
 from dice_sweep.config import config_to_toml, load_config
 from dice_sweep.plotting import (
     axis_label,
+    box_entropy_panel,
     plot_comparison,
     plot_control_map,
     plot_refinement,

@@ -24,7 +24,6 @@ from dice_sweep.chaos import (
     compare_control,
     control_map,
     fit_power_law,
-    measure_file,
     monte_carlo_indices,
     outcome_fractions,
     parse_sigma,
@@ -35,6 +34,7 @@ from dice_sweep.chaos import (
     weierstrass_map,
 )
 from dice_sweep.cli import main
+from dice_sweep.app.chaos import measure_file
 from dice_sweep.config import load_config, parse_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.geometry import DOWN, support
