@@ -1,0 +1,318 @@
+"""Final-state diagrams: the outcome map of a sweep in the paper's colours, a zoom box, several
+maps side by side, and where quadtree refinement rolled.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import BoundaryNorm, ListedColormap
+from matplotlib.figure import Figure
+from matplotlib.patches import Rectangle
+
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.plotting.common import (
+    BOX_COLOR,
+    MAX_SIDE_LABELS,
+    NOT_COMPUTED_COLOR,
+    OUTCOME_FIGSIZE,
+    UNDECIDED_COLOR,
+    cell_extent,
+    panel_figure,
+    axis_label,
+    check_dpi,
+    draw_scalar_map,
+    outcome_colors,
+)
+
+
+def draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, title=None, *, extent=None, computed=None):
+    """Draw a final-state diagram on ``ax`` with a colour bar naming the sides.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Axes of a :class:`matplotlib.figure.Figure`; the colour bar is added beside it.
+    outcome : array_like of int, shape (ny, nx)
+        Side 0..n-1 of each roll, -1 for undecided; row i belongs to ``y_values[i]``.
+    x_values, y_values : array_like of float, shapes (nx,) and (ny,)
+        Cell centres of the two axes (equally spaced), in the parameters' SI units.
+    x_label, y_label : str
+        Axis labels with parameter and unit, see :func:`axis_label`.
+    sides : int
+        Number of sides n of the die.
+    title : str, optional
+        Title of the axes.
+    extent : tuple of 4 float, optional
+        (xmin, xmax, ymin, ymax) covered by the cells; by default inferred from the centres
+        (a single cell then gets width 1).
+    computed : array_like of bool, shape (ny, nx), optional
+        False for cells of an incomplete sweep not computed yet: drawn in
+        :data:`NOT_COMPUTED_COLOR`, with a "not computed" entry on the colour bar.
+
+    Returns
+    -------
+    matplotlib.image.AxesImage
+        The drawn image; its extent is exactly the outer cell edges.
+    """
+    # Colour index -2 (not computed), -1 (undecided) .. n-1 (sides) maps onto bins centred on
+    # the integers; -2 only when some cell is not computed.
+    outcome = np.asarray(outcome)
+    missing = None if computed is None else ~np.asarray(computed, dtype=bool)
+    first = -2 if missing is not None and missing.any() else -1
+    if first == -2:
+        outcome = np.where(missing, -2, outcome)
+    colors = [NOT_COMPUTED_COLOR, UNDECIDED_COLOR][first + 2:]
+    cmap = ListedColormap(np.vstack([*colors, outcome_colors(sides)]))
+    norm = BoundaryNorm(np.arange(first - 0.5, sides), cmap.N)
+    image = ax.imshow(
+        outcome,
+        cmap=cmap,
+        norm=norm,
+        origin="lower",
+        extent=extent or (*cell_extent(x_values), *cell_extent(y_values)),
+        interpolation="nearest",
+        aspect="auto",
+    )
+    named = {-2: "not computed", -1: "undecided"}
+    sides_shown = np.arange(sides)[:: math.ceil((sides + 1) / MAX_SIDE_LABELS)]
+    ticks = np.concatenate([np.arange(first, 0), sides_shown])
+    colorbar = ax.figure.colorbar(image, ax=ax, ticks=ticks)
+    colorbar.ax.set_yticklabels([named.get(k, f"side {k}") for k in ticks])
+    colorbar.ax.tick_params(labelsize="small" if sides <= 12 else "x-small")
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    if title:
+        ax.set_title(title, fontsize="medium")
+    return image
+
+
+def draw_box(ax, box):
+    """Draw the zoom rectangle ``box = (xmin, xmax, ymin, ymax)`` (Smith 2014, Figs 9, 11)."""
+    xmin, xmax, ymin, ymax = box
+    ax.add_patch(
+        Rectangle((xmin, ymin), xmax - xmin, ymax - ymin, fill=False, edgecolor=BOX_COLOR, linewidth=1.5)
+    )
+
+
+def parse_box(text):
+    """Parse ``"XMIN,XMAX,YMIN,YMAX"`` (the ``--box`` option) into four floats.
+
+    Raises
+    ------
+    DiceSweepError
+        If there are not four finite numbers with XMIN < XMAX and YMIN < YMAX.
+    """
+    try:
+        box = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        box = ()
+    if len(box) != 4 or not all(map(math.isfinite, box)) or box[0] >= box[1] or box[2] >= box[3]:
+        raise DiceSweepError(f"--box: expected XMIN,XMAX,YMIN,YMAX with XMIN < XMAX and YMIN < YMAX, got {text!r}")
+    return box
+
+
+def check_box(box, extent):
+    """``box`` if it lies inside ``extent`` = (xmin, xmax, ymin, ymax) of the map, edges
+    included; else a one-line :class:`DiceSweepError` naming ``--box`` (a box outside the
+    map was drawn nowhere, without a word)."""
+    xmin, xmax, ymin, ymax = extent
+    if not (xmin <= box[0] and box[1] <= xmax and ymin <= box[2] and box[3] <= ymax):
+        raise DiceSweepError(f"--box: {','.join(f'{v:g}' for v in box)} is not inside the map (allowed: XMIN, XMAX "
+                             f"in [{xmin:g}, {xmax:g}], YMIN, YMAX in [{ymin:g}, {ymax:g}])")
+    return box
+
+
+def outcome_title(cfg, complete=True):
+    """Title of a final-state diagram: n, the restitution coefficients and the walls.
+
+    Parameters
+    ----------
+    cfg : dice_sweep.config.Config
+        The sweep's resolved config.
+    complete : bool
+        False marks the title "(incomplete)": part of the grid has not been run.
+    """
+    separation = cfg.walls.separation
+    walls = "no walls" if separation is None else f"walls {separation:g} m apart"
+    title = (
+        f"n = {cfg.die.sides}, beta_normal = {cfg.contact.beta_normal:g}, "
+        f"beta_tangential = {cfg.contact.beta_tangential:g}, {walls}"
+    )
+    extras = [] if cfg.contact.model == "paper" else [f"{cfg.contact.model} model"]
+    if math.isfinite(cfg.contact.friction):
+        extras.append(f"mu = {cfg.contact.friction:g}")
+    effects = cfg.effects
+    if effects.air_drag:
+        extras.append(f"drag {effects.air_drag:g}/m")
+    if any(effects.com_offset):
+        extras.append(f"loaded ({effects.com_offset[0]:g}, {effects.com_offset[1]:g}) m")
+    if effects.speed_restitution:
+        extras.append(f"k = {effects.speed_restitution:g} s/m")
+    if cfg.world.g != 9.81:
+        extras.append(f"g = {cfg.world.g:g}")
+    if extras:
+        title += "\n" + ", ".join(extras)
+    return title if complete else f"{title} (incomplete)"
+
+
+def outcome_figure(
+    outcome, x_values, y_values, x_label, y_label, sides, *, title=None, box=None, extent=None, dpi=150, computed=None
+):
+    """A :class:`~matplotlib.figure.Figure` holding one final-state diagram.
+
+    Parameters are those of :func:`draw_outcome_map`, plus ``box`` (the zoom rectangle
+    ``(xmin, xmax, ymin, ymax)``, optional) and ``dpi`` (pixels per inch of the figure).
+    """
+    fig = Figure(figsize=OUTCOME_FIGSIZE, dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, title=title, extent=extent,
+                     computed=computed)
+    if box is not None:
+        draw_box(ax, box)
+    return fig
+
+
+def sweep_figure(sweep, *, box=None, dpi=150):
+    """The final-state diagram of a sweep read by :func:`dice_sweep.storage.read_sweep`.
+
+    Parameters
+    ----------
+    sweep : dice_sweep.storage.SweepData
+        Outcome map, axes (values, parameter, unit, range), config text and ``complete`` flag;
+        an incomplete sweep is drawn (cells not run in :data:`NOT_COMPUTED_COLOR`) and titled so.
+    box : tuple of 4 float, optional
+        Zoom rectangle ``(xmin, xmax, ymin, ymax)`` in the axes' units.
+    dpi : float
+        Pixels per inch.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from dice_sweep.config import parse_config
+
+    if box is not None:
+        check_box(box, sweep.extent)
+    cfg = parse_config(sweep.config_toml, source=f"{sweep.path}: config_toml")
+    return outcome_figure(
+        sweep.outcome,
+        sweep.x.values,
+        sweep.y.values,
+        axis_label(sweep.x.param, sweep.x.unit),
+        axis_label(sweep.y.param, sweep.y.unit),
+        sweep.sides,
+        title=outcome_title(cfg, sweep.complete and bool(sweep.computed.all())),
+        box=box,
+        extent=sweep.extent,
+        dpi=dpi,
+        computed=sweep.computed,
+    )
+
+
+def plot_comparison(h5_paths, png_path, *, titles=None, dpi=100):
+    """Final-state diagrams of several sweep files side by side in one PNG.
+
+    Parameters
+    ----------
+    h5_paths : sequence of str or pathlib.Path
+        Sweep files (docs/hdf5.md), drawn left to right.
+    png_path : str or pathlib.Path
+        PNG to write.
+    titles : sequence of str, optional
+        One title per panel; default: each file's config title.
+    dpi : float
+        Pixels per inch.
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    from dice_sweep.config import parse_config
+    from dice_sweep.storage import read_sweep
+
+    sweeps = [read_sweep(path) for path in h5_paths]
+    fig, axes = panel_figure(len(sweeps), dpi, OUTCOME_FIGSIZE)
+    for i, (ax, sweep) in enumerate(zip(axes, sweeps)):
+        title = titles[i] if titles else outcome_title(parse_config(sweep.config_toml), sweep.complete)
+        draw_outcome_map(
+            ax,
+            sweep.outcome,
+            sweep.x.values,
+            sweep.y.values,
+            axis_label(sweep.x.param, sweep.x.unit),
+            axis_label(sweep.y.param, sweep.y.unit),
+            sweep.sides,
+            title=title,
+            extent=sweep.extent,
+            computed=sweep.computed,
+        )
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)
+
+
+def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150, warn=None):
+    """Write the final-state diagram of an HDF5 sweep file (docs/hdf5.md) as a PNG.
+
+    Parameters
+    ----------
+    h5_path : str or pathlib.Path
+        Sweep file, complete or not.
+    png_path : str or pathlib.Path
+        Picture to write (any of :func:`image_formats`); its size is :data:`OUTCOME_FIGSIZE`
+        times ``dpi`` pixels.
+    box, dpi
+        As in :func:`sweep_figure`; ``dpi`` within :data:`DPI_RANGE`.
+    warn : callable, optional
+        Called with one line when some cells are not computed yet (an incomplete sweep or
+        one shard); they are drawn in :data:`NOT_COMPUTED_COLOR` either way.
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    from dice_sweep.storage import read_sweep  # lazy: drawing a roll needs no h5py
+
+    check_dpi(dpi)
+    sweep = read_sweep(h5_path)
+    missing = int(np.count_nonzero(~sweep.computed))
+    if missing and warn is not None:
+        warn(f"{h5_path}: {missing} of {sweep.outcome.size} cells not computed yet, drawn grey as 'not computed' "
+             "(finish the sweep with --resume, or merge its shards)")
+    sweep_figure(sweep, box=box, dpi=dpi).savefig(png_path, dpi=dpi)
+    return Path(png_path)
+
+
+def plot_refinement(sweep, refine_level, levels, png_path, *, dpi=100):
+    """A refined sweep's final-state diagram beside the level each pixel's value came from.
+
+    Parameters
+    ----------
+    sweep : dice_sweep.storage.SweepData
+        The refined sweep.
+    refine_level : array_like of int, shape (ny, nx)
+        Level whose roll gave each pixel its value (``/refine_level``, docs/hdf5.md).
+    levels : int
+        The finest level (pixels rolled at their own centre).
+    png_path : str or pathlib.Path
+    dpi : float
+
+    Returns
+    -------
+    pathlib.Path
+        ``png_path``.
+    """
+    fig, (ax_outcome, ax_level) = panel_figure(2, dpi)
+    axes = (sweep.x.values, sweep.y.values, axis_label(sweep.x.param, sweep.x.unit), axis_label(sweep.y.param, sweep.y.unit))
+    ny, nx = sweep.outcome.shape
+    draw_outcome_map(ax_outcome, sweep.outcome, *axes, sweep.sides, title=f"refined sweep, {ny} x {nx}", extent=sweep.extent,
+                     computed=sweep.computed)
+    simulated = np.mean(np.asarray(refine_level) == levels)
+    draw_scalar_map(ax_level, refine_level, *axes, label="level (0 = coarsest)", vmin=0, vmax=levels, extent=sweep.extent,
+                    title=f"level of each pixel's roll; {100 * simulated:.1f} % rolled at their own centre ({levels})")
+    fig.savefig(png_path, dpi=dpi)
+    return Path(png_path)
