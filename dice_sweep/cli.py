@@ -360,7 +360,8 @@ def fit_command(data, config_path, rate, angle, effects_text, json_path, png_dir
     \b
     Example: dice-sweep fit drops.csv --config configs/square_drops.toml --effects corner_impulse --json fit.json
     """
-    from dice_sweep.measured.report import parse_effects, run_fit
+    from dice_sweep.app.measured import run_fit
+    from dice_sweep.measured.report import parse_effects
 
     _compile_notice()
     result = run_fit(data, _load(config_path, ()), effects=parse_effects(effects_text), rate=rate, angle=angle,
@@ -386,7 +387,7 @@ def diagnose(data, config_path, rate, angle, json_path, md_path, png_dir, quiet)
     \b
     Example: dice-sweep diagnose drops.csv --config configs/square_drops.toml --json report.json --md report.md
     """
-    from dice_sweep.measured.report import run_diagnose
+    from dice_sweep.app.measured import run_diagnose
 
     _compile_notice()
     report = run_diagnose(data, _load(config_path, ()), rate=rate, angle=angle, json_path=json_path, md_path=md_path,
@@ -467,20 +468,10 @@ def calibrate_command(data, config_path, rate, angle, gaps, json_path, png_path)
     \b
     Example: dice-sweep calibrate drops.csv.gz --config configs/square_drops.toml --json cal.json --png cal.png
     """
-    from dice_sweep.measured.calibrate import calibrate
-    from dice_sweep.measured.tracks import load_tracks
-    from dice_sweep.outputs import JSON
+    from dice_sweep.app.measured import run_calibrate
 
-    _check_outputs(("--json", json_path, JSON), ("--png", png_path, IMAGE))
-    cfg = _load(config_path, ())
-    trackset = load_tracks(data, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle, gaps=gaps)
-    result = calibrate(trackset, cfg)
+    result, written = run_calibrate(data, _load(config_path, ()), rate=rate, angle=angle, gaps=gaps, json_path=json_path,
+                                    png_path=png_path)
     click.echo(result.describe())
-    if json_path:
-        with open(json_path, "w", encoding="utf-8") as file:
-            json.dump(result.to_dict(), file, indent=1)
-        click.echo(f"wrote {json_path}")
-    if png_path:
-        from dice_sweep.plotting import plot_calibration
-
-        _report_written(plot_calibration(result, png_path))
+    for path in written:
+        _report_written(path)

@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
 from dice_sweep.config import parse_config  # noqa: E402
-from dice_sweep.measured.report import run_fit  # noqa: E402
+from dice_sweep.app.measured import run_fit  # noqa: E402
 from tests.measured.cases import DECLARED_RIGID, NOISE, TRUE_COEFFICIENTS  # noqa: E402
 from tests.measured.independent import Truth, simulate_drops, write_csv  # noqa: E402
 

@@ -10,7 +10,8 @@ import sys
 from pathlib import Path
 
 from dice_sweep.config import load_config
-from dice_sweep.measured.report import markdown_report, run_diagnose
+from dice_sweep.app.measured import run_diagnose
+from dice_sweep.measured.report import markdown_report
 
 ROOT = Path(__file__).resolve().parent.parent
 DEFAULT_DATA = ROOT.parent / "shared" / "data" / "mcube_square_drops" / "drops.csv.gz"
@@ -38,9 +39,9 @@ The same command, by hand:
 
 
 def write_markdown(report):
-    """docs/measured.md: the introduction, the generated report, the notes."""
+    """docs/measured.md: the introduction, the generated report, the notes (scripts/templates/measured_notes.md)."""
     text = INTRO + markdown_report(report).split("\n", 1)[1]
-    (ROOT / "docs" / "measured.md").write_text(text + "\n" + (ROOT / "docs" / "measured_notes.md").read_text())
+    (ROOT / "docs" / "measured.md").write_text(text + "\n" + (ROOT / "scripts" / "templates" / "measured_notes.md").read_text())
 
 
 def main():

@@ -40,7 +40,7 @@ own (``chain_sincos``, ``chain_sqrt_div``).
 
     python scripts/profile_kernel.py [--repeat 7] [--write]
 
-``--write`` regenerates docs/profile.md (the text around the tables is in this script).
+``--write`` regenerates docs/dev/profile.md (the text around the tables is in this script).
 """
 
 import argparse
@@ -573,7 +573,7 @@ kernel.
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=7)
-    parser.add_argument("--write", action="store_true", help="write docs/profile.md")
+    parser.add_argument("--write", action="store_true", help="write docs/dev/profile.md")
     args = parser.parse_args()
     results = []
     for name, config, num in CASES:
@@ -590,7 +590,7 @@ def main():
         text = DOC_HEAD.format(method=method) + "\n## Breakdown\n\n" + table + "\n\n" + derived(results) + "\n"
         text += "\n" + search + "\n"
         text += NOTES
-        (ROOT / "docs" / "profile.md").write_text(text)
+        (ROOT / "docs" / "dev" / "profile.md").write_text(text)
 
 
 if __name__ == "__main__":

@@ -93,6 +93,11 @@ class CalibrationResult:
     summary: dict
     skipped: dict = field(default_factory=dict)
 
+    @property
+    def coefficients(self) -> dict:
+        """The coefficients measured at each impact: name -> what it is (for pictures)."""
+        return COEFFICIENTS
+
     def to_dict(self):
         """JSON-ready dict (floats, ints, strings, None for undefined values)."""
         return _json_ready(

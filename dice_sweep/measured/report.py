@@ -1,21 +1,11 @@
 """One call per command: load tracks, fit or diagnose, write JSON / Markdown / pictures."""
 
-import json
 import math
-from pathlib import Path
 
 import numpy as np
 
 from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.measured import diagnose as loop
-from dice_sweep.measured import fit as shooting
-from dice_sweep.measured.tracks import load_tracks
-from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically
-
-
-def _load(data_path, cfg, rate, angle):
-    return load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle)
 
 
 def parse_effects(text):
@@ -27,16 +17,11 @@ def parse_effects(text):
     return names
 
 
-def _write_atomic(path, text):
-    """Write a whole text file or nothing (a killed run leaves no half-written report)."""
-    replace_atomically(path, lambda file: file.write(text.encode()))
-
-
-def _jsonable(value):
+def jsonable(value):
     if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     if isinstance(value, (np.floating, float)):
         return None if not math.isfinite(float(value)) else float(value)
     if isinstance(value, (np.integer,)):
@@ -44,73 +29,6 @@ def _jsonable(value):
     if isinstance(value, np.bool_):
         return bool(value)
     return value
-
-
-def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=None, png_dir=None, seed=0):
-    """Fit the declared model plus ``effects`` on the selection tracks (multiple shooting),
-    with 95 % bootstrap intervals over tracks, and score it on the confirmation tracks."""
-    check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
-    trackset = _load(data_path, cfg, rate, angle)
-    table = loop.table_height(trackset, cfg)
-    noise = loop.noise_floor(trackset, cfg, table)
-    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
-    select_set, confirm_set = trackset.split(loop.CONFIRM_FRACTION, seed)
-    select = shooting.prepare_tracks(select_set, cfg, noise=sigma, table=table)
-    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma, table=table)
-    if len(select) < loop.MIN_TRACKS or not confirm:
-        raise DiceSweepError(f"{data_path}: tracks: {len(select)} fitting and {len(confirm)} scoring tracks have a first free flight "
-                             f"of {shooting.MIN_FLIGHT_FRAMES} frames or more (allowed: at least {loop.MIN_TRACKS} and 1)")
-    rng = np.random.default_rng(seed)
-    seg_select = shooting.Segments(select, cfg.world.g)
-    seg_confirm = shooting.Segments(confirm, cfg.world.g)
-    declared = registry.declared_effects(cfg)
-    extra = tuple(e for e in effects if e not in declared)
-    spec = shooting.ModelSpec.of(cfg, extra)
-    fit = shooting.fit_spec(cfg, spec, seg_select)
-    lin = shooting.linearise(cfg, fit, seg_select)
-    red = loop._reduce(lin, seg_select)
-    draws = loop.bootstrap_params(red, seg_select, list(fit.free), fit.params, cfg, rng)
-    e_train = shooting.track_errors(seg_select, lin.residual)
-    e_test, residual_test = loop._confirm(cfg, fit, seg_confirm)
-    result = {
-        "metric": loop.METRIC,
-        "model": cfg.contact.model if "corner_impulse" not in extra else "rigid",
-        "effects": list(declared) + list(extra),
-        "params": loop._describe_params(fit, draws, cfg, red),
-        "train_error": shooting.rms(e_train),
-        "test_error": shooting.rms(e_test),
-        "ci95": loop.bootstrap_rms(e_test, rng),
-        "noise_floor": noise["pose"],
-        "train_tracks": len(select),
-        "test_tracks": len(confirm),
-        "converged": fit.converged,
-        "angle_reading": trackset.angle_note,
-        "glitch_frames": trackset.glitch_count,
-    }
-    if json_path:
-        _write_atomic(json_path, json.dumps(_jsonable(result), indent=2) + "\n")
-    if png_dir:
-        _residual_pictures({"fit": residual_test}, confirm, seg_confirm, Path(png_dir))
-    return result
-
-
-def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md_path=None, png_dir=None, log=None, **options):
-    """The whole loop on a data file; writes REPORT.json (Markdown and pictures if asked)."""
-    check_outputs(("--json", json_path, JSON), ("--md", md_path, MARKDOWN), ("--png", png_dir, FOLDER))
-    trackset = _load(data_path, cfg, rate, angle)
-    report = loop.diagnose(trackset, cfg, log=log, angle_reading=f"--angle {angle}: {trackset.angle_note}", **options)
-    fits = report.pop("_fits")
-    report["by_bounce"], report["by_tilt"] = residual_by_bounce(cfg, fits)
-    if png_dir:
-        _, seg_confirm = fits["segments"]
-        _, confirm = fits["prepared"]
-        report["pictures"] = _residual_pictures(fits["confirm_residuals"], confirm, seg_confirm, Path(png_dir))
-    report = _jsonable(report)
-    if json_path:
-        _write_atomic(json_path, json.dumps(report, indent=2) + "\n")
-    if md_path:
-        _write_atomic(md_path, markdown_report(report))
-    return report
 
 
 def residual_by_bounce(cfg, fits):
@@ -161,20 +79,14 @@ def _landing_tilts(cfg, segments, prepared):
     return tilt
 
 
-def _residual_pictures(residuals, prepared, segments, png_dir):
-    """Per-frame pose error against time from the first impact, one curve per residual
-    (label -> (rows, 3) m, on ``segments``)."""
-    from dice_sweep.plotting import plot_residual_curves
-
-    png_dir.mkdir(parents=True, exist_ok=True)
+def residual_curves(residuals, prepared, segments):
+    """(label, time from the first impact in s, pose error in m) per frame, one entry per
+    residual (label -> (rows, 3) m, on ``segments``): what the residual picture draws."""
     t_impact = np.array([p.t_impact for p in prepared])
     seg_t0 = np.array([prepared[segments.track[j]].t[prepared[segments.track[j]].flights[k][0]]
                        for j, k in zip(range(segments.count), _flight_index(segments))])
     since = segments.times + seg_t0[segments.segment_rows] - t_impact[segments.track_rows]
-    curves = [(label, since, np.sqrt(np.sum(residual**2, axis=1))) for label, residual in residuals.items()]
-    path = png_dir / "residual_error_vs_time.png"
-    plot_residual_curves(curves, path)
-    return [str(path)]
+    return [(label, since, np.sqrt(np.sum(residual**2, axis=1))) for label, residual in residuals.items()]
 
 
 def _flight_index(segments):

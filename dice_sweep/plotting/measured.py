@@ -69,11 +69,9 @@ def plot_calibration(result, png_path, *, dpi=120, bins=40):
     pathlib.Path
         ``png_path``.
     """
-    from dice_sweep.measured.calibrate import COEFFICIENTS  # lazy: only this picture needs it
-
     fig = Figure(figsize=CALIBRATION_FIGSIZE, dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
-    for panel, (name, meaning) in enumerate(COEFFICIENTS.items()):
+    for panel, (name, meaning) in enumerate(result.coefficients.items()):
         ax = fig.add_subplot(2, 2, panel + 1)
         first, every = result.values(name, "first"), result.values(name, "all")
         if every.size:

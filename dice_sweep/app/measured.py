@@ -1,0 +1,110 @@
+"""The measured-data commands (``calibrate``, ``fit``, ``diagnose``): a track file in; a fit,
+a report in JSON and Markdown, and pictures out. The loop itself is dice_sweep.measured;
+pictures are dice_sweep.plotting's.
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+from dice_sweep import effects as registry
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.measured import diagnose as loop
+from dice_sweep.measured import fit as shooting
+from dice_sweep.measured.calibrate import CalibrationResult, calibrate
+from dice_sweep.measured.report import jsonable, markdown_report, residual_by_bounce, residual_curves
+from dice_sweep.measured.tracks import load_tracks
+from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
+from dice_sweep.plotting import image_formats, plot_calibration, plot_residual_curves
+
+
+def _load(data_path, cfg, rate, angle, gaps="auto"):
+    return load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle, gaps=gaps)
+
+
+def run_calibrate(data_path, cfg, *, rate=None, angle="as-is", gaps="auto", json_path=None, png_path=None) -> tuple[CalibrationResult, list]:
+    """Measure the coefficients at every impact; write JSON and the histograms if asked
+    (both paths checked before the work). Returns the result and the files written, in order."""
+    check_outputs(("--json", json_path, JSON), ("--png", png_path, image_formats()))
+    result = calibrate(_load(data_path, cfg, rate, angle, gaps), cfg)
+    written = []
+    if json_path:
+        written.append(write_json(json_path, result.to_dict(), indent=1))
+    if png_path:
+        written.append(plot_calibration(result, png_path))
+    return result, written
+
+
+def _residual_pictures(residuals, prepared, segments, png_dir):
+    """The residual picture: per-frame pose error against time from the first impact."""
+    png_dir.mkdir(parents=True, exist_ok=True)
+    path = png_dir / "residual_error_vs_time.png"
+    plot_residual_curves(residual_curves(residuals, prepared, segments), path)
+    return [str(path)]
+
+
+def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=None, png_dir=None, seed=0):
+    """Fit the declared model plus ``effects`` on the selection tracks (multiple shooting),
+    with 95 % bootstrap intervals over tracks, and score it on the confirmation tracks."""
+    check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
+    trackset = _load(data_path, cfg, rate, angle)
+    table = loop.table_height(trackset, cfg)
+    noise = loop.noise_floor(trackset, cfg, table)
+    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+    select_set, confirm_set = trackset.split(loop.CONFIRM_FRACTION, seed)
+    select = shooting.prepare_tracks(select_set, cfg, noise=sigma, table=table)
+    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma, table=table)
+    if len(select) < loop.MIN_TRACKS or not confirm:
+        raise DiceSweepError(f"{data_path}: tracks: {len(select)} fitting and {len(confirm)} scoring tracks have a first free flight "
+                             f"of {shooting.MIN_FLIGHT_FRAMES} frames or more (allowed: at least {loop.MIN_TRACKS} and 1)")
+    rng = np.random.default_rng(seed)
+    seg_select = shooting.Segments(select, cfg.world.g)
+    seg_confirm = shooting.Segments(confirm, cfg.world.g)
+    declared = registry.declared_effects(cfg)
+    extra = tuple(e for e in effects if e not in declared)
+    spec = shooting.ModelSpec.of(cfg, extra)
+    fit = shooting.fit_spec(cfg, spec, seg_select)
+    lin = shooting.linearise(cfg, fit, seg_select)
+    red = loop._reduce(lin, seg_select)
+    draws = loop.bootstrap_params(red, seg_select, list(fit.free), fit.params, cfg, rng)
+    e_train = shooting.track_errors(seg_select, lin.residual)
+    e_test, residual_test = loop._confirm(cfg, fit, seg_confirm)
+    result = {
+        "metric": loop.METRIC,
+        "model": cfg.contact.model if "corner_impulse" not in extra else "rigid",
+        "effects": list(declared) + list(extra),
+        "params": loop._describe_params(fit, draws, cfg, red),
+        "train_error": shooting.rms(e_train),
+        "test_error": shooting.rms(e_test),
+        "ci95": loop.bootstrap_rms(e_test, rng),
+        "noise_floor": noise["pose"],
+        "train_tracks": len(select),
+        "test_tracks": len(confirm),
+        "converged": fit.converged,
+        "angle_reading": trackset.angle_note,
+        "glitch_frames": trackset.glitch_count,
+    }
+    if json_path:
+        write_json(json_path, jsonable(result))
+    if png_dir:
+        _residual_pictures({"fit": residual_test}, confirm, seg_confirm, Path(png_dir))
+    return result
+
+
+def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md_path=None, png_dir=None, log=None, **options):
+    """The whole loop on a data file; writes REPORT.json (Markdown and pictures if asked)."""
+    check_outputs(("--json", json_path, JSON), ("--md", md_path, MARKDOWN), ("--png", png_dir, FOLDER))
+    trackset = _load(data_path, cfg, rate, angle)
+    report = loop.diagnose(trackset, cfg, log=log, angle_reading=f"--angle {angle}: {trackset.angle_note}", **options)
+    fits = report.pop("_fits")
+    report["by_bounce"], report["by_tilt"] = residual_by_bounce(cfg, fits)
+    if png_dir:
+        _, seg_confirm = fits["segments"]
+        _, confirm = fits["prepared"]
+        report["pictures"] = _residual_pictures(fits["confirm_residuals"], confirm, seg_confirm, Path(png_dir))
+    report = jsonable(report)
+    if json_path:
+        write_json(json_path, report)
+    if md_path:
+        replace_atomically(md_path, lambda file: file.write(markdown_report(report).encode()))
+    return report
