@@ -225,9 +225,10 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     _fast_kernel_start()
     from dice_sweep.sweep import run_sweep
 
+    from dice_sweep.config import require_grid
+
     cfg = _load(config, overrides)
-    if cfg.grid is None:
-        raise ConfigError(cfg.source, "grid", "missing; sweep needs a [grid] with x = {...} and y = {...} (use roll for one roll)")
+    require_grid(cfg)
     if refine_levels is not None:
         from dice_sweep.refine import run_refined_sweep
 

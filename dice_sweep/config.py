@@ -58,6 +58,8 @@ __all__ = [
     "PARAM_LONG_NAMES",
     "load_config",
     "parse_config",
+    "require_grid",
+    "cell_centres",
     "config_to_toml",
     "default_config",
 ]
@@ -175,6 +177,19 @@ class Integrator:
     max_events: int
 
 
+def cell_centres(lo: float, hi: float, cells: int) -> np.ndarray:
+    """Centres ``lo + (i + 0.5) (hi - lo) / cells``, i = 0 .. cells-1, of equal cells covering
+    [lo, hi]: the one formula of every grid's values (a sweep's axes, refinement's levels)."""
+    return lo + (np.arange(cells) + 0.5) * (hi - lo) / cells
+
+
+def require_grid(cfg):
+    """``cfg.grid``, or the one-line error of a config without one (a sweep needs it)."""
+    if cfg.grid is None:
+        raise ConfigError(cfg.source, "grid", "missing; sweep needs a [grid] with x = {...} and y = {...} (use roll for one roll)")
+    return cfg.grid
+
+
 @dataclass(frozen=True)
 class Axis:
     """One swept initial value: ``param`` from ``min`` to ``max`` (its SI unit) in ``num`` cells."""
@@ -192,7 +207,7 @@ class Axis:
         ndarray, shape (num,)
             The swept values, in the unit of ``param`` (see ``PARAM_UNITS``).
         """
-        return self.min + (np.arange(self.num) + 0.5) * (self.max - self.min) / self.num
+        return cell_centres(self.min, self.max, self.num)
 
 
 @dataclass(frozen=True)

@@ -34,16 +34,16 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-from dice_sweep.config import PARAM_UNITS, config_to_toml
+from dice_sweep.config import cell_centres, require_grid
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.physics.layout import COUNT_COLUMNS, STATUS_NAMES
+from dice_sweep.physics.layout import COUNT_COLUMNS
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
-from dice_sweep.storage import SweepAxis, SweepHeader, create_whole, exists_error, rolls_to_maps, write_refinement_maps
+from dice_sweep.storage import create_whole, exists_error, rolls_to_maps, write_refinement_maps
 from dice_sweep.sweep import (
-    DEFAULT_TILE_SHAPE,
     SweepInterrupted,
     SweepJob,
     TileGrid,
+    sweep_header,
 )
 from dice_sweep.executor import ordered_map, worker_count
 
@@ -129,8 +129,8 @@ def boundary_cells(outcome) -> np.ndarray:
 
 
 def level_values(lo: float, hi: float, cells: int) -> np.ndarray:
-    """Cell centres ``lo + (i + 0.5) (hi - lo) / cells`` of one level of an axis."""
-    return lo + (np.arange(cells) + 0.5) * (hi - lo) / cells
+    """Cell centres of one level of an axis (:func:`dice_sweep.config.cell_centres`)."""
+    return cell_centres(lo, hi, cells)
 
 
 def check_levels(cfg, levels: int) -> tuple[int, int]:
@@ -141,8 +141,7 @@ def check_levels(cfg, levels: int) -> tuple[int, int]:
     DiceSweepError
         If ``levels`` is outside 0 .. ``MAX_LEVELS`` or a grid axis is not divisible by 2^levels.
     """
-    if cfg.grid is None:
-        raise DiceSweepError(f"{cfg.source}: grid: the config has no [grid] section to sweep")
+    require_grid(cfg)
     if not 0 <= levels <= MAX_LEVELS:
         raise DiceSweepError(f"--refine {levels}: outside the allowed range [0, {MAX_LEVELS}]")
     factor = 2**levels
@@ -352,27 +351,9 @@ class RefineSummary:
         )
 
 
-def _header(cfg) -> SweepHeader:
-    grid = cfg.grid
-    axes = {
-        name: SweepAxis(axis.param, PARAM_UNITS[axis.param], np.asarray(axis.values(), dtype=np.float64), float(axis.min), float(axis.max))
-        for name, axis in (("x", grid.x), ("y", grid.y))
-    }
-    return SweepHeader(
-        config_toml=config_to_toml(cfg),
-        sides=cfg.die.sides,
-        x=axes["x"],
-        y=axes["y"],
-        tile_shape=DEFAULT_TILE_SHAPE,
-        shard=(0, 1),
-        count_columns=COUNT_COLUMNS,
-        status_names=STATUS_NAMES,
-    )
-
-
 def write_refined(path, cfg, refined: RefinedMaps) -> None:
     """Write refined maps as a complete sweep file (docs/hdf5.md) plus the refinement maps."""
-    header = _header(cfg)
+    header = sweep_header(cfg)
     tiles = TileGrid(header.shape, header.tile_shape)
     with create_whole(path, header, tiles.count) as sweep_file:
         for index in range(tiles.count):

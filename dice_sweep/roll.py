@@ -7,13 +7,13 @@ import numpy as np
 from dice_sweep import engine
 from dice_sweep.physics import pack_params
 from dice_sweep.physics.kernel import roll_one, sample_records
-from dice_sweep.physics.layout import COUNT_COLUMNS, REC_WIDTH, ROLL_RECORDS, STATUS_NAMES
+from dice_sweep.physics.layout import COUNT_COLUMNS, REC_WIDTH, ROLL_RECORDS, STATE_COLUMNS, STATUS_NAMES
 
 
 def initial_state(cfg):
-    """The config's initial state as float64[6] in STATE_COLUMNS order (SI)."""
-    i = cfg.initial
-    return np.array([i.x0, i.y0, i.phi0, i.vx0, i.vy0, i.omega0], dtype=float)
+    """The config's initial state as float64[6] in STATE_COLUMNS order (SI): the start of a
+    roll, and the unswept values of every start of a sweep."""
+    return np.array([getattr(cfg.initial, name) for name in STATE_COLUMNS], dtype=np.float64)
 
 
 @dataclass(frozen=True)

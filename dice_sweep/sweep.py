@@ -19,13 +19,14 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from dice_sweep.config import PARAM_UNITS, config_to_toml
+from dice_sweep.config import PARAM_UNITS, config_to_toml, require_grid
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
 from dice_sweep.engine import ENGINE_NUMBA, ENGINE_PLAIN, PROBE_ROLLS, sweep_engine
 from dice_sweep.executor import EXECUTORS, StopRequest, tile_results, worker_count
 from dice_sweep.engine import run as engine_run
 from dice_sweep.physics import pack_params, roll_batch
+from dice_sweep.roll import initial_state
 from dice_sweep.physics.layout import COUNT_COLUMNS, STATE_COLUMNS, STATUS_NAMES
 from dice_sweep.storage import (
     SweepAxis,
@@ -168,16 +169,6 @@ def _probe_states(job: "SweepJob", todo: Sequence[int], count: int = PROBE_ROLLS
     return np.array(states)
 
 
-def _base_state(cfg) -> np.ndarray:
-    return np.array([getattr(cfg.initial, name) for name in STATE_COLUMNS], dtype=np.float64)
-
-
-def _require_grid(cfg):
-    if cfg.grid is None:
-        raise DiceSweepError(f"{cfg.source}: grid: the config has no [grid] section to sweep")
-    return cfg.grid
-
-
 def initial_states(cfg, xs, ys) -> np.ndarray:
     """Initial states of the grid cells with axis values xs (fast) and ys (slow).
 
@@ -193,9 +184,9 @@ def initial_states(cfg, xs, ys) -> np.ndarray:
     numpy.ndarray
         float64 (len(ys) * len(xs), 6), columns ``STATE_COLUMNS``, row-major (y slow, x fast).
     """
-    grid = _require_grid(cfg)
+    grid = require_grid(cfg)
     return _grid_states(
-        _base_state(cfg),
+        initial_state(cfg),
         STATE_COLUMNS.index(grid.x.param),
         np.asarray(xs, dtype=np.float64),
         STATE_COLUMNS.index(grid.y.param),
@@ -262,13 +253,13 @@ class SweepJob:
     @classmethod
     def from_config(cls, cfg, tile_shape=DEFAULT_TILE_SHAPE) -> "SweepJob":
         """The job of ``cfg``'s grid cut into tiles of ``tile_shape``."""
-        grid = _require_grid(cfg)
+        grid = require_grid(cfg)
         fpar, ipar = pack_params(cfg)
         xs, ys = axis_values(grid.x), axis_values(grid.y)
         return cls(
             fpar=fpar,
             ipar=ipar,
-            base_state=_base_state(cfg),
+            base_state=initial_state(cfg),
             x_column=STATE_COLUMNS.index(grid.x.param),
             xs=xs,
             y_column=STATE_COLUMNS.index(grid.y.param),
@@ -365,18 +356,19 @@ def _check_executor(executor: str, scheduler: str | None, workers: int | None) -
     return worker_count(workers)
 
 
-def _sweep_axis(axis, values) -> SweepAxis:
-    return SweepAxis(axis.param, PARAM_UNITS[axis.param], values, float(axis.min), float(axis.max))
+def _sweep_axis(axis) -> SweepAxis:
+    return SweepAxis(axis.param, PARAM_UNITS[axis.param], axis_values(axis), float(axis.min), float(axis.max))
 
 
-def _sweep_header(cfg, job: SweepJob, shard) -> SweepHeader:
-    grid = cfg.grid
+def sweep_header(cfg, tile_shape=DEFAULT_TILE_SHAPE, shard=(0, 1)) -> SweepHeader:
+    """The header of a sweep file of ``cfg`` (its grid, config text, kernel layout)."""
+    grid = require_grid(cfg)
     return SweepHeader(
         config_toml=config_to_toml(cfg),
         sides=cfg.die.sides,
-        x=_sweep_axis(grid.x, job.xs),
-        y=_sweep_axis(grid.y, job.ys),
-        tile_shape=job.tiles.tile_shape,
+        x=_sweep_axis(grid.x),
+        y=_sweep_axis(grid.y),
+        tile_shape=tuple(tile_shape),
         shard=shard,
         count_columns=COUNT_COLUMNS,
         status_names=STATUS_NAMES,
@@ -474,11 +466,11 @@ def run_sweep(
         On Ctrl-C, after stopping the workers; the written tiles are kept.
     """
     started = time.perf_counter()
-    _require_grid(cfg)
+    require_grid(cfg)
     shard = _check_shard(shard)
     workers = _check_executor(executor, scheduler, workers)
     job = SweepJob.from_config(cfg, tile_shape)
-    header = _sweep_header(cfg, job, shard)
+    header = sweep_header(cfg, job.tiles.tile_shape, shard)
     path = Path(out_path)
     tiles = job.tiles
     shard_tiles = tiles.shard_tiles(shard)

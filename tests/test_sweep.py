@@ -179,7 +179,7 @@ def test_existing_output_is_refused_without_resume(cfg, tmp_path):
 
 
 def test_config_without_grid_is_refused(tmp_path):
-    with pytest.raises(DiceSweepError, match="no \\[grid\\]"):
+    with pytest.raises(DiceSweepError, match="grid: missing; sweep needs a \\[grid\\]"):
         sweep(parse_config("", "single.toml"), tmp_path / "out.h5")
 
 
