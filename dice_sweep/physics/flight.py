@@ -250,7 +250,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     corners (not while the centre of mass is still far from every surface). The state comes
     in and goes out as scalars: every array argument of a numba function that calls others
     costs a reference count up and down per call. This loop is most of a roll's time
-    (docs/profile.md). Its corner loop repeats ``_scan``'s on purpose: the two as one
+    (docs/dev/profile.md). Its corner loop repeats ``_scan``'s on purpose: the two as one
     ``inline="always"`` function made the paper kernel 10 to 20 % slower (bench_kernel.py,
     interleaved runs).
 

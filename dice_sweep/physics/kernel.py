@@ -96,6 +96,7 @@ from dice_sweep.physics.pivot import (
     corner_geometry,
     pivot_angle_at,
     pivot_energy,
+    pivot_omega_squared,
     pivot_next,
     pivot_ode,
     below_the_top,
@@ -313,7 +314,7 @@ def _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_deci
     """The end of a roll that lands flat on side ``flat`` (both its corners down): the die
     slides under Coulomb friction (or stops at once with unlimited friction, or against a
     wall) and is decided on that side. Without this phase the two corners traded pivots at
-    one instant until the event budget ran out (docs/validation.md).
+    one instant until the event budget ran out (docs/dev/validation_history.md).
 
     Returns the roll's (outcome, status, t_decided, t_end, n_records), as _roll_event does.
     """
@@ -342,7 +343,7 @@ def _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_deci
 
 # Inlined (numba IR) into its only caller, _roll_into, itself inlined into roll_one, roll_batch
 # and sample_batch: as a call it took eight array arguments, a reference count up and down for
-# each on every roll. The fixed overhead of a roll fell by about 40 % (docs/profile.md, change
+# each on every roll. The fixed overhead of a roll fell by about 40 % (docs/dev/profile.md, change
 # 5); results bit for bit the same.
 @numba.njit(inline="always")
 def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
@@ -575,7 +576,7 @@ def roll_one(fpar, ipar, state0, rec, counts):
 def _roll_into(fpar, ipar, state0, rec, counts, s, after, pivot_out, hit):
     """:func:`roll_one` with its scratch arrays passed in (float64[6], float64[6],
     float64[5], int64[2], contents irrelevant), so that a batch allocates them once: four
-    allocations per roll were 5-10 % of a roll's time (docs/profile.md)."""
+    allocations per roll were 5-10 % of a roll's time (docs/dev/profile.md)."""
     shift_reference(state0, fpar, 1.0, s)
     for i in range(counts.shape[0]):
         counts[i] = 0
@@ -636,7 +637,7 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             chi0 = rec[seg, REC_CHI]
             chi = pivot_angle_at(chi0, start[5], tau, rho, g, alpha, rec[seg, REC_CHI_END])
             e = pivot_energy(chi0, start[5], rho, g, alpha)
-            w2 = 2.0 * (e - g * rho * math.sin(chi)) / (rho * rho * (1.0 + alpha))
+            w2 = pivot_omega_squared(e, math.sin(chi), rho, g, alpha)
             omega = math.copysign(math.sqrt(max(w2, 0.0)), start[5] if start[5] != 0.0 else -math.cos(chi0))
             com[:] = start
             _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner)

@@ -76,6 +76,13 @@ def pivot_energy(chi, omega, radius, g, alpha):
 
 
 @numba.njit(cache=True)
+def pivot_omega_squared(e, sin_chi, radius, g, alpha):
+    """omega^2 (1/s^2) of a die pivoting without loss at specific energy ``e`` (J/kg) and
+    angle chi (its sine ``sin_chi``): :func:`pivot_energy` solved for omega^2."""
+    return 2.0 * (e - g * radius * sin_chi) / (radius * radius * (1.0 + alpha))
+
+
+@numba.njit(cache=True)
 def liftoff_factor(sin_chi, e, radius, g, alpha):
     """q(s) = (1 + alpha) (g - R omega^2 s); the corner lifts off where it is negative."""
     return 2.0 * g * sin_chi * sin_chi - (2.0 * e / radius) * sin_chi + g * (1.0 + alpha)
@@ -538,7 +545,7 @@ def _stick_margin(sin_chi, cos_chi, e, rho, g, alpha, mu):
     mass are F = cos chi P(s) and N = g alpha / (1 + alpha) + s P(s), with
     P(s) = 3 g s / (1 + alpha) - 2 e / (rho (1 + alpha)).
     """
-    w2 = 2.0 * (e - g * rho * sin_chi) / (rho * rho * (1.0 + alpha))
+    w2 = pivot_omega_squared(e, sin_chi, rho, g, alpha)
     lift = w2 * rho * sin_chi - g
     if math.isinf(mu):
         return lift
