@@ -15,7 +15,7 @@ import click
 
 from dice_sweep import __version__
 from dice_sweep.effects import names as effect_names
-from dice_sweep.errors import ConfigError, DiceSweepError
+from dice_sweep.errors import DiceSweepError
 
 USER_ERROR_EXIT = 2
 INTERRUPTED_EXIT = 130  # the shell's code for a process stopped by SIGINT (Ctrl-C)
@@ -172,21 +172,10 @@ def roll(config, overrides, as_json, png_path, gif_path):
 
     _check_outputs(("--png", png_path, IMAGE), ("--gif", gif_path, GIF))
     _fast_kernel_start()
-    cfg = _load(config, overrides)
-    from dice_sweep.config import check_initial_clear
-    from dice_sweep.roll import roll_config
+    from dice_sweep.app.roll import roll as roll_command
 
-    check_initial_clear(cfg, overrides)
-    report = roll_config(cfg)
+    report, _ = roll_command(_load(config, overrides), overrides, png_path=png_path, gif_path=gif_path)
     click.echo(json.dumps(report.to_dict()) if as_json else _describe_roll(report))
-    if png_path:
-        from dice_sweep.plotting import plot_roll
-
-        plot_roll(cfg, report, png_path)
-    if gif_path:
-        from dice_sweep.plotting import animate_roll
-
-        animate_roll(cfg, report, gif_path)
 
 
 def _describe_roll(report):
@@ -223,28 +212,16 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
 
     _check_outputs(("--output", out_path, SWEEP_FILE), ("--png", png_path, IMAGE))
     _fast_kernel_start()
-    from dice_sweep.sweep import run_sweep
+    from dice_sweep.app.sweep import sweep as sweep_command
 
-    from dice_sweep.config import require_grid
-
-    cfg = _load(config, overrides)
-    require_grid(cfg)
-    if refine_levels is not None:
-        from dice_sweep.refine import run_refined_sweep
-
-        if resume or shard != (0, 1) or executor != "local":
-            raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")
-        summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=not quiet,
-                                    log=None if quiet else lambda line: click.echo(line, err=True))
-    else:
-        summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=not quiet,
-                            executor=executor, scheduler=scheduler)
+    summary, written = sweep_command(
+        _load(config, overrides), out_path, png_path=png_path, workers=workers, shard=shard, resume=resume,
+        progress=not quiet, refine_levels=refine_levels, executor=executor, scheduler=scheduler,
+        log=None if quiet else lambda line: click.echo(line, err=True), warn=_warn)
     if not quiet:
         click.echo(summary.describe())
-    if png_path:
-        from dice_sweep.plotting import plot_outcome_file
-
-        _report_written(plot_outcome_file(out_path, png_path, warn=_warn), quiet)
+    for path in written:
+        _report_written(path, quiet)
 
 
 def _report_written(path, quiet=False):
@@ -281,10 +258,10 @@ def plot(h5_path, png_path, box, dpi):
     \b
     Example: dice-sweep plot out/fig09.h5 -o out/fig09.png --box 40,50,0.2,0.25 --dpi 200
     """
-    from dice_sweep.plotting import plot_outcome_file
+    from dice_sweep.app.sweep import draw_sweep_file
 
     _check_outputs(("--output", png_path, IMAGE))
-    _report_written(plot_outcome_file(h5_path, png_path, box=box, dpi=dpi, warn=_warn))
+    _report_written(draw_sweep_file(h5_path, png_path, box=box, dpi=dpi, warn=_warn))
 
 
 # --- chaos measures and control maps (issue 6, docs/chaos.md) -----------------------------

@@ -33,11 +33,11 @@ from dice_sweep.chaos import (
     uncertainty_curve,
     weierstrass_map,
 )
+from dice_sweep.app.sweep import draw_sweep_files
 from dice_sweep.config import config_to_toml, load_config
 from dice_sweep.plotting import (
     axis_label,
     box_entropy_panel,
-    plot_comparison,
     plot_control_map,
     plot_refinement,
     plot_scalar_maps,
@@ -224,7 +224,7 @@ def time_step_table(runner, args):
     write_table("time_step", markdown + footer(f"python scripts/chaos_tables.py time_step --num {runner.num}", started, extra, runner))
     exact, _ = runner.sweep("fig08")
     paper, _ = runner.sweep("fig08", ["integrator.method=fixed_step", "integrator.dt=0.001"])
-    plot_comparison([exact.path, paper.path],
+    draw_sweep_files([exact.path, paper.path],
                     FIGURES / "chaos_fig08_time_step.png",
                     titles=["fig08, event integrator (exact)", "fig08, fixed_step dt = 1e-3 s (the paper's)"])
 

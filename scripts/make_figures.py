@@ -13,8 +13,8 @@ import argparse
 from pathlib import Path
 
 from dice_sweep.config import load_config
-from dice_sweep.plotting import plot_comparison, plot_outcome_file, plot_roll
-from dice_sweep.roll import roll_config
+from dice_sweep.app.roll import roll
+from dice_sweep.app.sweep import draw_sweep_file, draw_sweep_files
 from dice_sweep.sweep import run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -43,13 +43,13 @@ def main():
         h5_path.unlink(missing_ok=True)
         summary = run_sweep(cfg, h5_path, workers=args.workers, progress=False)
         box = zoom_box(ZOOMS[name]) if name in ZOOMS else None
-        plot_outcome_file(h5_path, fig_dir / f"{name}.png", box=box)
+        draw_sweep_file(h5_path, fig_dir / f"{name}.png", box=box)
         print(f"{name}: {summary.rolls_computed} rolls in {summary.seconds:.1f} s -> docs/figures/{name}.png")
-    plot_comparison([data_dir / "fig08.h5", data_dir / "fig08_rigid.h5"], fig_dir / "fig08_paper_vs_rigid.png",
+    draw_sweep_files([data_dir / "fig08.h5", data_dir / "fig08_rigid.h5"], fig_dir / "fig08_paper_vs_rigid.png",
                     titles=["paper contact law (eqs 9-13)", "rigid contact law (impulse at the corner)"])
     print("fig08_paper_vs_rigid: side by side -> docs/figures/fig08_paper_vs_rigid.png")
     cfg = load_config(ROOT / "configs" / "table1.toml")
-    plot_roll(cfg, roll_config(cfg), fig_dir / "fig05_roll.png")
+    roll(cfg, png_path=fig_dir / "fig05_roll.png")
     print("fig05_roll: one roll of configs/table1.toml -> docs/figures/fig05_roll.png")
 
 

@@ -60,15 +60,15 @@ def calls(monkeypatch):
         to_dict=lambda: {"outcome": 2, "status": 0, "impacts": 7, "t_decided": 0.4321},
     )
     summary = types.SimpleNamespace(describe=lambda: "summary line")
-    roll_module = types.ModuleType("dice_sweep.roll")
-    roll_module.roll_config = lambda cfg: recorded.append(("roll_config", (cfg,), {})) or report
-    monkeypatch.setitem(sys.modules, "dice_sweep.roll", roll_module)
+    import dice_sweep.app.roll
+    import dice_sweep.app.sweep
     import dice_sweep.plotting
     import dice_sweep.sweep
 
+    monkeypatch.setattr(dice_sweep.app.roll, "roll_config", lambda cfg: recorded.append(("roll_config", (cfg,), {})) or report)
     monkeypatch.setattr(dice_sweep.sweep, "run_sweep", recorder("run_sweep", summary))
     monkeypatch.setattr(dice_sweep.sweep, "merge_parts", recorder("merge_parts", summary))
-    monkeypatch.setattr(dice_sweep.plotting, "plot_outcome_file", recorder("plot_outcome_file", "the.png"))
+    monkeypatch.setattr(dice_sweep.app.sweep, "draw_sweep_file", recorder("draw_sweep_file", "the.png"))
     monkeypatch.setattr(dice_sweep.plotting, "plot_roll", recorder("plot_roll"))
     monkeypatch.setattr(dice_sweep.plotting, "animate_roll", recorder("animate_roll"))
     return recorded
@@ -223,7 +223,7 @@ def test_sweep_passes_options_to_run_sweep_and_plots(calls):
     assert kwargs == {"workers": 3, "shard": (1, 4), "resume": True, "progress": True,
                       "executor": "local", "scheduler": None}
     assert cfg.grid.x.num == 128 and cfg.source == DEMO
-    assert plot_call == ("plot_outcome_file", ("out.h5", "out.png"), {"warn": cli._warn})
+    assert plot_call == ("draw_sweep_file", ("out.h5", "out.png"), {"warn": cli._warn})
     assert result.stdout.splitlines() == ["summary line", "wrote the.png"]
 
 
@@ -246,7 +246,7 @@ def test_roll_prints_a_sentence_or_json(calls):
 
 def test_roll_that_is_not_decided_says_why(calls, monkeypatch):
     report = types.SimpleNamespace(outcome=-1, status=1, status_name="t_max", impacts=900, t_decided=float("nan"))
-    monkeypatch.setattr(sys.modules["dice_sweep.roll"], "roll_config", lambda cfg: report)
+    monkeypatch.setattr(sys.modules["dice_sweep.app.roll"], "roll_config", lambda cfg: report)
     assert run("roll", TABLE1).stdout.strip() == "no side: t_max (status 1) after 900 impacts"
 
 
@@ -261,7 +261,7 @@ def test_merge_and_plot_pass_their_arguments(calls):
     assert run("plot", "m.h5", "-o", "m.png", "--box", "1,2,0.1,0.2", "--dpi", "80").exit_code == 0
     assert calls == [
         ("merge_parts", (("a.h5", "b.h5"), "m.h5"), {}),
-        ("plot_outcome_file", ("m.h5", "m.png"), {"box": (1.0, 2.0, 0.1, 0.2), "dpi": 80, "warn": cli._warn}),
+        ("draw_sweep_file", ("m.h5", "m.png"), {"box": (1.0, 2.0, 0.1, 0.2), "dpi": 80, "warn": cli._warn}),
     ]
 
 

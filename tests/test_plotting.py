@@ -13,6 +13,7 @@ from matplotlib.image import imread
 from PIL import Image
 
 from dice_sweep import config, plotting, storage
+from dice_sweep.app.sweep import diagram_title, draw_sweep_file
 from dice_sweep.errors import DiceSweepError
 
 COLOR_TOLERANCE = 1.5 / 255  # PNG stores 8 bits per channel
@@ -208,7 +209,8 @@ def write_block_sweep(path, complete=True):
 def test_sweep_file_is_drawn_with_axes_title_and_cell_colours(tmp_path, complete):
     h5 = write_block_sweep(tmp_path / "sweep.h5", complete)
     png = tmp_path / "map.png"
-    fig = plotting.sweep_figure(storage.read_sweep(h5), dpi=60)
+    sweep_data = storage.read_sweep(h5)
+    fig = plotting.sweep_figure(sweep_data, diagram_title(sweep_data), dpi=60)
     fig.savefig(png, dpi=60)
     ax = fig.axes[0]
     assert (ax.get_xlabel(), ax.get_ylabel()) == ("omega0 (rad/s)", "y0 (m)")
@@ -219,9 +221,9 @@ def test_sweep_file_is_drawn_with_axes_title_and_cell_colours(tmp_path, complete
 
 
 @pytest.mark.parametrize("dpi", [30, 72])
-def test_plot_outcome_file_writes_png_of_requested_size(tmp_path, dpi):
+def test_draw_sweep_file_writes_png_of_requested_size(tmp_path, dpi):
     h5 = write_block_sweep(tmp_path / "sweep.h5")
-    png = plotting.plot_outcome_file(h5, tmp_path / "map.png", box=(10, 20, 0.1, 0.2), dpi=dpi)
+    png = draw_sweep_file(h5, tmp_path / "map.png", box=(10, 20, 0.1, 0.2), dpi=dpi)
     with open(png, "rb") as file:
         header = file.read(24)
     assert header[:8] == b"\x89PNG\r\n\x1a\n"
@@ -234,9 +236,10 @@ def test_cells_not_computed_have_their_own_colour_legend_entry_and_warning(tmp_p
     'undecided', and without a word."""
     half = write_sweep_file(tmp_path / "half.h5", config.parse_config(BLOCK_CONFIG_TOML), BLOCK_OUTCOME, False, rows=10)
     warnings = []
-    png = plotting.plot_outcome_file(half, tmp_path / "half.png", dpi=60, warn=warnings.append)
+    png = draw_sweep_file(half, tmp_path / "half.png", dpi=60, warn=warnings.append)
     assert len(warnings) == 1 and warnings[0].startswith(f"{half}: 200 of 400 cells not computed yet")
-    fig = plotting.sweep_figure(storage.read_sweep(half), dpi=60)
+    sweep_data = storage.read_sweep(half)
+    fig = plotting.sweep_figure(sweep_data, diagram_title(sweep_data), dpi=60)
     fig.savefig(png, dpi=60)
     for x, y, expected in [(15.0, 0.09, plotting.outcome_colors(4)[0]), (45.0, 0.09, plotting.outcome_colors(4)[1]),
                            (15.0, 0.23, plotting.NOT_COMPUTED_COLOR), (45.0, 0.23, plotting.NOT_COMPUTED_COLOR)]:
@@ -245,7 +248,7 @@ def test_cells_not_computed_have_their_own_colour_legend_entry_and_warning(tmp_p
     assert labels == ["not computed", "undecided", "side 0", "side 1", "side 2", "side 3"]
     assert fig.axes[0].get_title().endswith("(incomplete)")
     whole = write_block_sweep(tmp_path / "whole.h5")
-    plotting.plot_outcome_file(whole, tmp_path / "whole.png", dpi=30, warn=warnings.append)
+    draw_sweep_file(whole, tmp_path / "whole.png", dpi=30, warn=warnings.append)
     assert len(warnings) == 1  # nothing to say about a complete sweep
 
 
@@ -253,7 +256,7 @@ def test_cells_not_computed_have_their_own_colour_legend_entry_and_warning(tmp_p
 def test_dpi_outside_its_range_is_refused_before_drawing(tmp_path, dpi):
     """Issue 16: --dpi 100000 ended in a MemoryError traceback."""
     with pytest.raises(DiceSweepError, match=r"--dpi: .* allowed range \[10, 1000\]"):
-        plotting.plot_outcome_file(write_block_sweep(tmp_path / "sweep.h5"), tmp_path / "map.png", dpi=dpi)
+        draw_sweep_file(write_block_sweep(tmp_path / "sweep.h5"), tmp_path / "map.png", dpi=dpi)
     assert not (tmp_path / "map.png").exists()
 
 
@@ -294,7 +297,8 @@ def test_plotting_never_imports_pyplot(tmp_path):
         from test_plotting import table_one_config, fake_report, falling_path, write_block_sweep
         from dice_sweep import plotting
         tmp = {str(tmp_path)!r}
-        plotting.plot_outcome_file(write_block_sweep(tmp + "/sweep.h5"), tmp + "/map.png", dpi=20)
+        from dice_sweep.app.sweep import draw_sweep_file
+        draw_sweep_file(write_block_sweep(tmp + "/sweep.h5"), tmp + "/map.png", dpi=20)
         plotting.plot_roll(table_one_config(), fake_report(), tmp + "/roll.png", path_sampler=falling_path)
         plotting.animate_roll(table_one_config(), fake_report(t_end=0.1), tmp + "/roll.gif",
                               path_sampler=falling_path)

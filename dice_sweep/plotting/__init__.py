@@ -46,7 +46,6 @@ from dice_sweep.plotting.maps import (  # noqa: F401
     outcome_title,
     parse_box,
     plot_comparison,
-    plot_outcome_file,
     plot_refinement,
     sweep_figure,
 )

@@ -175,14 +175,16 @@ def outcome_figure(
     return fig
 
 
-def sweep_figure(sweep, *, box=None, dpi=150):
+def sweep_figure(sweep, title, *, box=None, dpi=150):
     """The final-state diagram of a sweep read by :func:`dice_sweep.storage.read_sweep`.
 
     Parameters
     ----------
     sweep : dice_sweep.storage.SweepData
-        Outcome map, axes (values, parameter, unit, range), config text and ``complete`` flag;
-        an incomplete sweep is drawn (cells not run in :data:`NOT_COMPUTED_COLOR`) and titled so.
+        Outcome map, axes (values, parameter, unit, range) and which cells were computed; an
+        incomplete sweep is drawn with the cells not run in :data:`NOT_COMPUTED_COLOR`.
+    title : str
+        E.g. :func:`outcome_title` of the sweep's config.
     box : tuple of 4 float, optional
         Zoom rectangle ``(xmin, xmax, ymin, ymax)`` in the axes' units.
     dpi : float
@@ -192,11 +194,8 @@ def sweep_figure(sweep, *, box=None, dpi=150):
     -------
     matplotlib.figure.Figure
     """
-    from dice_sweep.config import parse_config
-
     if box is not None:
         check_box(box, sweep.extent)
-    cfg = parse_config(sweep.config_toml, source=f"{sweep.path}: config_toml")
     return outcome_figure(
         sweep.outcome,
         sweep.x.values,
@@ -204,7 +203,7 @@ def sweep_figure(sweep, *, box=None, dpi=150):
         axis_label(sweep.x.param, sweep.x.unit),
         axis_label(sweep.y.param, sweep.y.unit),
         sweep.sides,
-        title=outcome_title(cfg, sweep.complete and bool(sweep.computed.all())),
+        title=title,
         box=box,
         extent=sweep.extent,
         dpi=dpi,
@@ -212,17 +211,17 @@ def sweep_figure(sweep, *, box=None, dpi=150):
     )
 
 
-def plot_comparison(h5_paths, png_path, *, titles=None, dpi=100):
-    """Final-state diagrams of several sweep files side by side in one PNG.
+def plot_comparison(sweeps, titles, png_path, *, dpi=100):
+    """Final-state diagrams of several sweeps side by side in one picture.
 
     Parameters
     ----------
-    h5_paths : sequence of str or pathlib.Path
-        Sweep files (docs/hdf5.md), drawn left to right.
+    sweeps : sequence of dice_sweep.storage.SweepData
+        Drawn left to right.
+    titles : sequence of str
+        One title per panel.
     png_path : str or pathlib.Path
-        PNG to write.
-    titles : sequence of str, optional
-        One title per panel; default: each file's config title.
+        Picture to write.
     dpi : float
         Pixels per inch.
 
@@ -231,13 +230,8 @@ def plot_comparison(h5_paths, png_path, *, titles=None, dpi=100):
     pathlib.Path
         ``png_path``.
     """
-    from dice_sweep.config import parse_config
-    from dice_sweep.storage import read_sweep
-
-    sweeps = [read_sweep(path) for path in h5_paths]
     fig, axes = panel_figure(len(sweeps), dpi, OUTCOME_FIGSIZE)
-    for i, (ax, sweep) in enumerate(zip(axes, sweeps)):
-        title = titles[i] if titles else outcome_title(parse_config(sweep.config_toml), sweep.complete)
+    for ax, sweep, title in zip(axes, sweeps, titles):
         draw_outcome_map(
             ax,
             sweep.outcome,
@@ -251,39 +245,6 @@ def plot_comparison(h5_paths, png_path, *, titles=None, dpi=100):
             computed=sweep.computed,
         )
     fig.savefig(png_path, dpi=dpi)
-    return Path(png_path)
-
-
-def plot_outcome_file(h5_path, png_path, *, box=None, dpi=150, warn=None):
-    """Write the final-state diagram of an HDF5 sweep file (docs/hdf5.md) as a PNG.
-
-    Parameters
-    ----------
-    h5_path : str or pathlib.Path
-        Sweep file, complete or not.
-    png_path : str or pathlib.Path
-        Picture to write (any of :func:`image_formats`); its size is :data:`OUTCOME_FIGSIZE`
-        times ``dpi`` pixels.
-    box, dpi
-        As in :func:`sweep_figure`; ``dpi`` within :data:`DPI_RANGE`.
-    warn : callable, optional
-        Called with one line when some cells are not computed yet (an incomplete sweep or
-        one shard); they are drawn in :data:`NOT_COMPUTED_COLOR` either way.
-
-    Returns
-    -------
-    pathlib.Path
-        ``png_path``.
-    """
-    from dice_sweep.storage import read_sweep  # lazy: drawing a roll needs no h5py
-
-    check_dpi(dpi)
-    sweep = read_sweep(h5_path)
-    missing = int(np.count_nonzero(~sweep.computed))
-    if missing and warn is not None:
-        warn(f"{h5_path}: {missing} of {sweep.outcome.size} cells not computed yet, drawn grey as 'not computed' "
-             "(finish the sweep with --resume, or merge its shards)")
-    sweep_figure(sweep, box=box, dpi=dpi).savefig(png_path, dpi=dpi)
     return Path(png_path)
 
 

@@ -22,13 +22,6 @@ from dice_sweep.plotting.common import (
 )
 
 
-def _default_path_sampler():
-    """:func:`dice_sweep.roll.sample_path`, imported only when a roll is drawn."""
-    from dice_sweep.roll import sample_path  # lazy: roll imports the numba kernel
-
-    return sample_path
-
-
 def _die_corners(cfg, state):
     """(n, 2) corners of the die in a state row (x, y, phi, ...)."""
     return corners(cfg.die.sides, cfg.die.circumradius, state[0], state[1], state[2])
@@ -79,7 +72,7 @@ def _move_die(artists, cfg, state):
     side0.set_data(xy[:2, 0], xy[:2, 1])
 
 
-def plot_roll(cfg, report, png_path, *, frames=12, dpi=150, path_sampler=None):
+def plot_roll(cfg, report, png_path, path_sampler, *, frames=12, dpi=150):
     """Write a picture of one roll like the paper's graphics window (Smith 2014, Fig. 5).
 
     Parameters
@@ -94,16 +87,16 @@ def plot_roll(cfg, report, png_path, *, frames=12, dpi=150, path_sampler=None):
         Number of die outlines drawn at equal time intervals from 0 to ``t_end``.
     dpi : float
         Pixels per inch.
-    path_sampler : callable, optional
-        ``(cfg, report, times) -> (T, 6)`` states (x, y, phi, vx, vy, omega) of the centre;
-        defaults to :func:`dice_sweep.roll.sample_path`.
+    path_sampler : callable
+        ``(cfg, report, times) -> (T, 6)`` states (x, y, phi, vx, vy, omega) of the centre,
+        e.g. :func:`dice_sweep.roll.sample_path`.
 
     Returns
     -------
     pathlib.Path
         ``png_path``.
     """
-    sampler = path_sampler or _default_path_sampler()
+    sampler = path_sampler
     intervals = max(frames - 1, 1)
     times = np.linspace(0.0, report.t_end, intervals * PATH_POINTS_PER_FRAME + 1)
     path = np.asarray(sampler(cfg, report, times))
@@ -118,7 +111,7 @@ def plot_roll(cfg, report, png_path, *, frames=12, dpi=150, path_sampler=None):
     return Path(png_path)
 
 
-def animate_roll(cfg, report, gif_path, *, fps=30, max_frames=MAX_ANIMATION_FRAMES, path_sampler=None):
+def animate_roll(cfg, report, gif_path, path_sampler, *, fps=30, max_frames=MAX_ANIMATION_FRAMES):
     """Write an animated GIF of one roll, one frame every 1/fps s of simulated time.
 
     A roll longer than ``max_frames / fps`` is subsampled to ``max_frames`` frames spread
@@ -140,7 +133,7 @@ def animate_roll(cfg, report, gif_path, *, fps=30, max_frames=MAX_ANIMATION_FRAM
     pathlib.Path
         ``gif_path``.
     """
-    sampler = path_sampler or _default_path_sampler()
+    sampler = path_sampler
     intervals = math.ceil(report.t_end * fps)
     if intervals < max_frames:
         times = np.minimum(np.arange(intervals + 1) / fps, report.t_end)  # last frame at rest

@@ -1,0 +1,74 @@
+"""The ``sweep`` and ``plot`` commands: a config in, a sweep file and its final-state diagram out.
+
+The application layer joins what the lower layers keep apart: dice_sweep.sweep and
+dice_sweep.refine compute and write the file, storage reads it back, config turns its stored
+text into a title, plotting draws.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from dice_sweep.config import parse_config, require_grid
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.storage import read_sweep
+
+
+def sweep_config(sweep_data):
+    """The config a sweep file was computed with (its stored TOML, parsed)."""
+    return parse_config(sweep_data.config_toml, source=f"{sweep_data.path}: config_toml")
+
+
+def diagram_title(sweep_data) -> str:
+    """Title of a sweep's final-state diagram: its config, and "(incomplete)" when cells are missing."""
+    from dice_sweep.plotting import outcome_title  # matplotlib: only where a picture is drawn (start-up time)
+
+    return outcome_title(sweep_config(sweep_data), sweep_data.complete and bool(sweep_data.computed.all()))
+
+
+def draw_sweep_file(h5_path, png_path, *, box=None, dpi=150, warn: Callable[[str], None] | None = None):
+    """Draw the final-state diagram of a sweep file (complete or not) into ``png_path``.
+
+    ``warn`` gets one line when some cells are not computed yet (an incomplete sweep or one
+    shard); they are drawn grey as "not computed" either way. Returns ``png_path``.
+    """
+    from dice_sweep.plotting import check_dpi, sweep_figure
+
+    check_dpi(dpi)
+    sweep_data = read_sweep(h5_path)
+    missing = int(np.count_nonzero(~sweep_data.computed))
+    if missing and warn is not None:
+        warn(f"{h5_path}: {missing} of {sweep_data.outcome.size} cells not computed yet, drawn grey as 'not computed' "
+             "(finish the sweep with --resume, or merge its shards)")
+    sweep_figure(sweep_data, diagram_title(sweep_data), box=box, dpi=dpi).savefig(png_path, dpi=dpi)
+    return png_path
+
+
+def draw_sweep_files(h5_paths: Sequence, png_path, *, titles=None, dpi=100):
+    """Final-state diagrams of several sweep files side by side; titles default to each
+    file's config. Returns ``png_path``."""
+    from dice_sweep.plotting import plot_comparison
+
+    sweeps = [read_sweep(path) for path in h5_paths]
+    return plot_comparison(sweeps, titles or [diagram_title(s) for s in sweeps], png_path, dpi=dpi)
+
+
+def sweep(cfg, out_path, *, png_path=None, workers=None, shard=(0, 1), resume=False, progress=True, refine_levels=None,
+          executor="local", scheduler=None, log=None, warn=None):
+    """The ``sweep`` command: a full, sharded, resumed, dask or refined sweep of ``cfg`` into
+    ``out_path``, then its diagram if asked. Returns (summary, pictures written)."""
+    from dice_sweep.refine import run_refined_sweep
+    from dice_sweep.sweep import run_sweep
+
+    require_grid(cfg)
+    if refine_levels is not None:
+        if resume or shard != (0, 1) or executor != "local":
+            raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")
+        summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=progress, log=log)
+    else:
+        summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=progress,
+                            executor=executor, scheduler=scheduler)
+    written = [draw_sweep_file(out_path, png_path, warn=warn)] if png_path else []
+    return summary, written
