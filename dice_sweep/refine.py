@@ -43,61 +43,13 @@ from dice_sweep.sweep import (
     SweepInterrupted,
     SweepJob,
     TileGrid,
+    roll_states,
     sweep_header,
 )
-from dice_sweep.executor import ordered_map, worker_count
+from dice_sweep.executor import worker_count
 
-CHUNK_ROLLS = 4096  # rolls per batch handed to a worker (and per progress-bar step)
 MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse grid
 PRIOR_GROWTH = 0.5  # change of the boundary share per level before two levels are seen: a smooth boundary's halves
-
-
-# --- rolling arbitrary states, in parallel ------------------------------------------------
-
-
-class _ChunkRoll:
-    """Picklable task: item k is ``job.roll`` of chunk k."""
-
-    def __init__(self, job: SweepJob, chunks):
-        self.job = job
-        self.chunks = chunks
-
-    def __call__(self, k: int) -> tuple[np.ndarray, ...]:
-        return self.job.roll(self.chunks[k])
-
-
-def roll_states(job: SweepJob, states, workers: int = 1, on_chunk=None) -> tuple[np.ndarray, ...]:
-    """``roll_batch`` on any starts, cut into chunks of ``CHUNK_ROLLS`` over ``workers`` processes
-    (the one worker pool, :func:`dice_sweep.executor.ordered_map`).
-
-    Parameters
-    ----------
-    job : dice_sweep.sweep.SweepJob
-        Gives the kernel parameters.
-    states : numpy.ndarray
-        float (N, 6): starts, columns ``STATE_COLUMNS``.
-    workers : int
-        Processes; 1 rolls in this one. A roll depends only on its start, so the result does
-        not depend on ``workers``.
-    on_chunk : callable, optional
-        Called with the number of rolls of each finished chunk.
-
-    Returns
-    -------
-    tuple of numpy.ndarray
-        (outcome, status, counts, t_decided) as ``SweepJob.roll`` gives them, in the order
-        of ``states``.
-    """
-    states = np.ascontiguousarray(states, dtype=np.float64)
-    chunks = [states[start : start + CHUNK_ROLLS] for start in range(0, len(states), CHUNK_ROLLS)]
-    job = job.with_engine_for(states, len(states), min(workers, max(1, len(chunks))))
-    if not chunks:
-        return job.roll(states)
-    if workers > 1 and len(chunks) > 1:
-        job.warm_up()  # compile before forking, so that every worker inherits the kernel
-    done = None if on_chunk is None else (lambda k: on_chunk(len(chunks[k])))
-    results = ordered_map(_ChunkRoll(job, chunks), len(chunks), workers, on_result=done)
-    return tuple(np.concatenate(parts) for parts in zip(*results))
 
 
 # --- the quadtree -------------------------------------------------------------------------

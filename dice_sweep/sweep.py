@@ -23,7 +23,7 @@ from dice_sweep.config import PARAM_UNITS, config_to_toml, require_grid
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
 from dice_sweep.engine import ENGINE_NUMBA, ENGINE_PLAIN, PROBE_ROLLS, sweep_engine
-from dice_sweep.executor import EXECUTORS, StopRequest, tile_results, worker_count
+from dice_sweep.executor import EXECUTORS, StopRequest, ordered_map, tile_results, worker_count
 from dice_sweep.engine import run as engine_run
 from dice_sweep.physics import pack_params, roll_batch
 from dice_sweep.roll import initial_state
@@ -39,6 +39,7 @@ from dice_sweep.storage import (
     rolls_to_maps,
 )
 
+CHUNK_ROLLS = 4096  # rolls per batch handed to a worker (and per progress-bar step)
 DEFAULT_TILE_SHAPE = (64, 64)
 
 
@@ -341,6 +342,54 @@ def _check_shard(shard) -> tuple[int, int]:
     if shard_count < 1 or not 0 <= shard_index < shard_count:
         raise DiceSweepError(f"--shard {shard_index}/{shard_count}: need 0 <= I < N")
     return shard_index, shard_count
+
+
+# --- rolling any starts, in parallel (refinement's levels, Monte Carlo control maps) --------
+
+
+class _ChunkRoll:
+    """Picklable task: item k is ``job.roll`` of chunk k."""
+
+    def __init__(self, job: SweepJob, chunks):
+        self.job = job
+        self.chunks = chunks
+
+    def __call__(self, k: int) -> tuple[np.ndarray, ...]:
+        return self.job.roll(self.chunks[k])
+
+
+def roll_states(job: SweepJob, states, workers: int = 1, on_chunk=None) -> tuple[np.ndarray, ...]:
+    """``roll_batch`` on any starts, cut into chunks of ``CHUNK_ROLLS`` over ``workers`` processes
+    (the one worker pool, :func:`dice_sweep.executor.ordered_map`).
+
+    Parameters
+    ----------
+    job : dice_sweep.sweep.SweepJob
+        Gives the kernel parameters.
+    states : numpy.ndarray
+        float (N, 6): starts, columns ``STATE_COLUMNS``.
+    workers : int
+        Processes; 1 rolls in this one. A roll depends only on its start, so the result does
+        not depend on ``workers``.
+    on_chunk : callable, optional
+        Called with the number of rolls of each finished chunk.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        (outcome, status, counts, t_decided) as ``SweepJob.roll`` gives them, in the order
+        of ``states``.
+    """
+    states = np.ascontiguousarray(states, dtype=np.float64)
+    chunks = [states[start : start + CHUNK_ROLLS] for start in range(0, len(states), CHUNK_ROLLS)]
+    job = job.with_engine_for(states, len(states), min(workers, max(1, len(chunks))))
+    if not chunks:
+        return job.roll(states)
+    if workers > 1 and len(chunks) > 1:
+        job.warm_up()  # compile before forking, so that every worker inherits the kernel
+    done = None if on_chunk is None else (lambda k: on_chunk(len(chunks[k])))
+    results = ordered_map(_ChunkRoll(job, chunks), len(chunks), workers, on_result=done)
+    return tuple(np.concatenate(parts) for parts in zip(*results))
 
 
 def _check_executor(executor: str, scheduler: str | None, workers: int | None) -> int | None:

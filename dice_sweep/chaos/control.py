@@ -4,7 +4,7 @@ side's indicator on a fine map, or, where the map is too coarse for that (or a s
 value is not an axis of the map), the share of Monte Carlo rolls that land on the side.
 
 The Monte Carlo rolls are a strategy over the one worker pool (dice_sweep.executor), through
-:func:`dice_sweep.refine.roll_states`.
+:func:`dice_sweep.sweep.roll_states`.
 """
 
 from __future__ import annotations
@@ -20,8 +20,7 @@ from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import worker_count
 from dice_sweep.geometry import clear_of_surfaces
 from dice_sweep.physics.layout import STATE_COLUMNS
-from dice_sweep.refine import roll_states
-from dice_sweep.sweep import SweepJob, initial_states
+from dice_sweep.sweep import SweepJob, initial_states, roll_states
 
 BLUR_MIN_PIXELS = 2.0  # the blur needs sigma at least this many cells wide on a blurred axis
 BLUR_TRUNCATE = 4.0  # the Gaussian kernel is cut at this many sigma
