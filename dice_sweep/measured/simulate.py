@@ -46,7 +46,7 @@ from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.effects import measurement_maps
 from dice_sweep.errors import ConfigError, DiceSweepError
 from dice_sweep.geometry import DOWN, support
-from dice_sweep.outputs import CSV, JSON, check_outputs, replace_atomically
+from dice_sweep.outputs import CSV, JSON, check_outputs, write_json
 from dice_sweep.physics import pack_params
 from dice_sweep.physics.layout import STATE_COLUMNS
 from dice_sweep.physics.kernel import roll_one, sample_batch
@@ -457,12 +457,12 @@ def write_drops(drops, cfg, path):
     ``path + ".json"``; each whole or not at all (a ``.partial`` file renamed), the data's
     partial file complete before the sidecar is renamed, so that no data file stands without
     its sidecar."""
-    provenance = (json.dumps(_provenance(drops, cfg, path), indent=1) + "\n").encode("utf-8")
+    provenance = _provenance(drops, cfg, path)
     data_tmp = Path(f"{path}.partial")
     try:
         with open(data_tmp, "wb") as file:
             _write_data(drops, path, file)
-        replace_atomically(sidecar_path(path), lambda file: file.write(provenance))
+        write_json(sidecar_path(path), provenance, indent=1)
         os.replace(data_tmp, path)
     except BaseException:
         data_tmp.unlink(missing_ok=True)
