@@ -453,3 +453,27 @@ def calibrate_command(data, config_path, rate, angle, gaps, json_path, png_path)
     click.echo(result.describe())
     for path in written:
         _report_written(path)
+
+
+# --- the map in the browser (issue 19, docs/view.md) ---------------------------------------
+
+
+@main.command()
+@click.argument("h5_path", metavar="FILE.h5")
+@click.option("--host", default="127.0.0.1", show_default=True, help="Address to listen on; the default serves this machine only.")
+@click.option("--port", type=int, metavar="N", help="Port, 0 to 65535; 0 picks a free one [default: 8765, or a free one if it is taken].")
+@click.option("--no-open", is_flag=True, help="Do not open a browser (the address is the first line printed).")
+@click.option("--workers", type=int, callback=_workers, help="Processes rolling zoomed maps, 1 to 1024 [default: all cores].")
+def view(h5_path, host, port, no_open, workers):
+    """Explore the final-state diagram of a sweep file in the browser: hover for a pixel's
+    initial condition and side, drag a box or scroll to zoom (the kernel recomputes the view
+    at screen resolution), click a pixel to play its roll; the view's shares and basin
+    entropy; export the view as PNG and as a TOML config for dice-sweep sweep. Prints
+    "serving on http://HOST:PORT/" first; Ctrl-C stops it.
+
+    \b
+    Example: dice-sweep view out/fig09.h5 --port 8000 --no-open
+    """
+    from dice_sweep.view.server import serve
+
+    serve(h5_path, host=host, port=port, open_browser=not no_open, workers=workers, echo=click.echo, warn=_warn)

@@ -1,13 +1,16 @@
 """Every command of the README's shell blocks runs as written (issue 16), in order, in a
 scratch folder, at a small size: sweeps get a 16 x 16 grid appended (``--set`` overrides
-the config's), shards write under the scratch folder. The set-up block (``make demo``, ``make
+the config's), shards write under the scratch folder, a server (``dice-sweep view``) runs until
+it answers and then gets Ctrl-C. The set-up block (``make demo``, ``make
 test``) is what runs this test, so it is left out."""
 
 import os
 import re
 import shlex
+import signal
 import subprocess
 import sys
+import urllib.request
 from pathlib import Path
 
 import pytest
@@ -64,6 +67,22 @@ def test_readme_command_runs_as_written(command, workdir):
         return
     argv, cwd = _small(argv, workdir)
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}"}
+    if argv[:2] == ["dice-sweep", "view"]:
+        return _serves(argv + ["--no-open"], cwd, env)
     done = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, (command, done.stdout[-2000:], done.stderr[-2000:])
     assert "Traceback" not in done.stderr
+
+
+def _serves(argv, cwd, env):
+    """A server command (dice-sweep view) runs until it answers, then stops on Ctrl-C."""
+    process = subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = process.stdout.readline()
+        assert first.startswith("serving on http://127.0.0.1:"), (first, process.stderr.read() if process.poll() is not None else "")
+        with urllib.request.urlopen(first.split()[-1] + "api/file", timeout=60) as response:
+            assert response.status == 200
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    assert process.returncode in (0, 130) and "Traceback" not in err, (out, err)
