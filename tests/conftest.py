@@ -1,7 +1,7 @@
 """Hypothesis profiles: `make test` (and CI) draws the same examples on every run; `make
 test-explore` draws new ones.
 
-Random draws found a real search defect once (hypothesis seed 25, docs/profile.md change 4),
+Random draws found a real search defect once (hypothesis seed 25, docs/dev/profile.md change 4),
 but a rare failing example must show up in an exploration run, not first in somebody's CI.
 """
 

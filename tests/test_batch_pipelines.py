@@ -14,10 +14,8 @@ import pytest
 
 from dice_sweep.config import load_config
 from dice_sweep.storage import read_sweep
-from dice_sweep.sweep import run_sweep
-from tests.test_sweep import assert_same_maps
+from tests.helpers import ROOT, assert_same_maps, small_sweep
 
-ROOT = Path(__file__).resolve().parent.parent
 BIN = Path(sys.executable).parent
 OVERRIDES = ["grid.x.num=128", "grid.y.num=96"]  # 2 x 2 tiles of 64 x 64
 SET = " ".join(f"--set {item}" for item in OVERRIDES)
@@ -26,7 +24,7 @@ SET = " ".join(f"--set {item}" for item in OVERRIDES)
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     path = tmp_path_factory.mktemp("reference") / "fig08.h5"
-    run_sweep(load_config(ROOT / "configs" / "fig08.toml", OVERRIDES), path, workers=1, progress=False)
+    small_sweep(load_config(ROOT / "configs" / "fig08.toml", OVERRIDES), path)
     return read_sweep(path)
 
 

@@ -9,10 +9,11 @@ boundary (alpha = 1 - ln 2 / ln 3) and a Weierstrass graph (alpha = -ln a / ln b
 import json
 import math
 
+import matplotlib
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
+from dice_sweep import plotting
 from dice_sweep.chaos import (
     LOG2,
     SMOOTH_BOUNDARY_SBB,
@@ -33,13 +34,14 @@ from dice_sweep.chaos import (
     uncertainty_curve,
     weierstrass_map,
 )
-from dice_sweep.cli import main
 from dice_sweep.app.chaos import measure_file
 from dice_sweep.config import load_config, parse_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.geometry import DOWN, support
 from dice_sweep.storage import read_sweep
-from dice_sweep.sweep import run_sweep
+from tests.helpers import figure_pixels, invoke, map_region, near, png_size, read_png, share, small_sweep
+
+MAGMA, VIRIDIS = matplotlib.colormaps["magma"], matplotlib.colormaps["viridis"]
 
 
 def binary_entropy(p):
@@ -183,7 +185,7 @@ def fig08_file(tmp_path_factory):
     """fig08 at 128 x 128, the physical ranges of the paper's figure."""
     cfg = load_config("configs/fig08.toml", ["grid.x.num=128", "grid.y.num=128"])
     path = tmp_path_factory.mktemp("fig08") / "fig08.h5"
-    run_sweep(cfg, path, workers=1, progress=False)
+    small_sweep(cfg, path)
     return path
 
 
@@ -191,23 +193,35 @@ def test_measure_file_matches_the_map_and_the_cli_writes_json_and_pictures(fig08
     measures = measure_file(fig08_file)
     outcome = read_sweep(fig08_file).outcome
     assert measures.entropy.sb == basin_entropy(outcome).sb
-    result = CliRunner().invoke(
-        main, ["measure", str(fig08_file), "--json", str(tmp_path / "m.json"), "--png", str(tmp_path / "png")]
-    )
+    result = invoke("measure", fig08_file, "--json", tmp_path / "m.json", "--png", tmp_path / "png")
     assert result.exit_code == 0, result.output
     assert "uncertainty exponent alpha" in result.output
     numbers = json.loads((tmp_path / "m.json").read_text())
     assert numbers["basin_entropy"]["Sb"] == pytest.approx(measures.entropy.sb)
     assert numbers["uncertainty"]["alpha"] == pytest.approx(measures.uncertainty.fit.alpha)
-    assert (tmp_path / "png" / "uncertainty.png").stat().st_size > 0
-    assert (tmp_path / "png" / "box_entropy.png").stat().st_size > 0
+    # f(eps): one panel at 100 dpi, the points and the fitted line in the first curve colour,
+    # across the plot and rising with eps (the uncertain share grows with the perturbation)
+    png = tmp_path / "png" / "uncertainty.png"
+    assert png_size(png) == figure_pixels(plotting.PANEL_FIGSIZE, 100)
+    rows, columns = np.nonzero(near(read_png(png), plotting.curve_colors(1)[0], tol=0.1))
+    assert rows.size > 300
+    assert np.ptp(columns) > 0.5 * png_size(png)[0]
+    quarter = np.ptp(columns) / 4
+    left, right = columns < columns.min() + quarter, columns > columns.max() - quarter
+    assert np.median(rows[left]) > np.median(rows[right]) + 50  # rows count down the picture
+    # box entropies: the map's black (magma at 0 nats) is the share of boxes off every boundary
+    png = tmp_path / "png" / "box_entropy.png"
+    assert png_size(png) == figure_pixels(plotting.PANEL_FIGSIZE, 100)
+    region = map_region(read_png(png))
+    assert share(region, MAGMA(0.0)) == pytest.approx(np.mean(measures.entropy.box_entropy == 0), abs=0.02)
+    assert 0.3 < share(region, MAGMA(0.0)) < 0.9  # boxes on and off a boundary both drawn
 
 
 def test_measure_refuses_an_incomplete_sweep(tmp_path):
     cfg = load_config("configs/fig08.toml", ["grid.x.num=16", "grid.y.num=16"])
     path = tmp_path / "part.h5"
-    run_sweep(cfg, path, workers=1, progress=False, shard=(0, 2), tile_shape=(8, 8))
-    result = CliRunner().invoke(main, ["measure", str(path)])
+    small_sweep(cfg, path, shard=(0, 2), tile_shape=(8, 8))
+    result = invoke("measure", path)
     assert result.exit_code == 2
     assert result.output.count("\n") == 1 and "not computed" in result.output
 
@@ -259,17 +273,33 @@ def test_scattered_starts_never_put_a_corner_into_the_table():
 
 
 def test_control_cli_writes_the_maps_and_rejects_bad_sigmas(fig08_file, tmp_path):
-    runner = CliRunner()
-    result = runner.invoke(main, ["control", str(fig08_file), "--sigma", "y0=0.006", "--sigma", "omega0=1.5",
-                                  "--png", str(tmp_path / "png"), "--json", str(tmp_path / "c.json"),
-                                  "-o", str(tmp_path / "c.npz")])
+    result = invoke("control", fig08_file, "--sigma", "y0=0.006", "--sigma", "omega0=1.5",
+                    "--png", tmp_path / "png", "--json", tmp_path / "c.json", "-o", tmp_path / "c.npz")
     assert result.exit_code == 0, result.output
     assert "Gaussian blur" in result.output
     assert json.loads((tmp_path / "c.json").read_text())["method"] == "blur"
-    assert np.load(tmp_path / "c.npz")["probability"].shape == (5, 128, 128)
-    assert (tmp_path / "png" / "control.png").stat().st_size > 0
+    maps = np.load(tmp_path / "c.npz")
+    assert maps["probability"].shape == (5, 128, 128)
+    # three panels at 100 dpi: the most likely side in the side colours, its probability
+    # (viridis, 0 to 1) and the entropy (magma, 0 to ln 4), each colour in the share of the
+    # cells the maps give it
+    png = tmp_path / "png" / "control.png"
+    width, height = figure_pixels(plotting.PANEL_FIGSIZE, 100)
+    assert png_size(png) == (3 * width, height)
+    image = read_png(png)
+    colours = {tuple(c): maps["most_likely"] == side for side, c in enumerate(plotting.outcome_colors(4))}
+    colours[plotting.UNDECIDED_COLOR] = maps["most_likely"] == -1
+    region = map_region(image[:, :width], colours)
+    for colour, cells in colours.items():
+        assert share(region, colour) == pytest.approx(cells.mean(), abs=0.02), colour
+    # the cells sure of their side: probability 1 (viridis' yellow), entropy 0 (magma's black)
+    for panel, cmap, scaled, sure in ((1, VIRIDIS, maps["p_max"], 1.0), (2, MAGMA, maps["entropy"] / math.log(4), 0.0)):
+        region = map_region(image[:, panel * width : (panel + 1) * width])
+        expected = near(cmap(scaled), cmap(sure)).mean()
+        assert 0.05 < expected < 0.95
+        assert share(region, cmap(sure)) == pytest.approx(expected, abs=0.02), panel
     for bad in (["--sigma", "y0=-1"], ["--sigma", "spin=1"], []):
-        result = runner.invoke(main, ["control", str(fig08_file), *bad])
+        result = invoke("control", fig08_file, *bad)
         assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
 
 

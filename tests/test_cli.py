@@ -9,25 +9,17 @@ import types
 
 import click
 import pytest
-from click.testing import CliRunner
 
 from dice_sweep import cli
+from tests.helpers import CONFIGS as CONFIG_DIR
+from tests.helpers import corrupt_first_chunk, figure_pixels, map_region, png_size, read_png, share, small_sweep
+from tests.helpers import run_cli as run
 from tests.test_storage import held_open  # noqa: F401 - a fixture
 
 Path = pathlib.Path
 
-CONFIG_DIR = pathlib.Path(__file__).resolve().parent.parent / "configs"
 TABLE1 = str(CONFIG_DIR / "table1.toml")
 DEMO = str(CONFIG_DIR / "demo.toml")
-
-
-def run(*args):
-    """Invoke the CLI in-process; stderr apart from stdout (click 8.1 needs mix_stderr=False)."""
-    try:
-        runner = CliRunner(mix_stderr=False)
-    except TypeError:  # click >= 8.2 always keeps stderr apart
-        runner = CliRunner()
-    return runner.invoke(cli.main, [str(arg) for arg in args])
 
 
 def assert_user_error(result, *fragments):
@@ -306,21 +298,27 @@ def test_bugs_are_not_hidden(calls, monkeypatch):
 # ---- end to end with the real kernel ---------------------------------------------------------
 
 
-def test_roll_table1_json_end_to_end():
-    """The real roll of configs/table1.toml (needs dice_sweep.roll from the physics work)."""
-    result = run("roll", TABLE1, "--json")
+@pytest.mark.parametrize("overrides", [[], ["initial.omega0=35", "contact.beta_normal=0.5"]], ids=["as-is", "set"])
+def test_roll_table1_json_end_to_end(overrides):
+    """The real roll of configs/table1.toml (and with --set) is the library's roll of the same
+    config, number for number: outcome, status, impacts, t_decided and every counter."""
+    from dice_sweep.config import load_config
+    from dice_sweep.roll import roll_config
+
+    sets = [arg for override in overrides for arg in ("--set", override)]
+    result = run("roll", TABLE1, *sets, "--json")
     assert result.exit_code == 0, result.stderr
     report = json.loads(result.stdout)
-    assert {"outcome", "status", "impacts", "t_decided"} <= set(report)
-    # "status" may be the code or its name (then the code is "status_code")
-    assert report.get("status_code", report["status"]) in (0, "decided")
-    assert report["status"] in (0, "decided")
-    assert report["outcome"] in range(4)
-    assert report["impacts"] >= 1
+    expected = roll_config(load_config(TABLE1, overrides))
+    assert report == json.loads(json.dumps(expected.to_dict()))
+    assert (report["outcome"], report["status_code"], report["impacts"], report["t_decided"]) == (
+        expected.outcome, expected.status, expected.impacts, expected.t_decided)
+    assert report["status"] == "decided" and report["outcome"] in range(4)
     # the centre falls 0.15 - R before the first corner can touch: decided after that
     assert report["t_decided"] > (2 * (0.15 - 0.0135) / 9.81) ** 0.5
-    again = json.loads(run("roll", TABLE1, "--json").stdout)
-    assert again == report  # deterministic
+    if overrides:  # the --set values reached the roll: not the roll of the file as it is
+        plain = roll_config(load_config(TABLE1))
+        assert (report["outcome"], report["impacts"], report["t_decided"]) != (plain.outcome, plain.impacts, plain.t_decided)
 
 
 def test_click_is_imported_only_by_the_cli():
@@ -434,13 +432,12 @@ def inputs(tmp_path_factory):
     "half" with only shard 0 of 2 computed); 4 simulated drops ("drops", at 250 Hz), with their
     times in ns ("ns") and slowed 100 times ("slow")."""
     from dice_sweep.config import load_config
-    from dice_sweep.sweep import run_sweep
 
     folder = tmp_path_factory.mktemp("inputs")
     cfg = load_config(DEMO, ["grid.x.num=16", "grid.y.num=16"])
     paths = {name: folder / f"{name}.h5" for name in ("whole", "half")}
-    run_sweep(cfg, paths["whole"], workers=1, tile_shape=(8, 8), progress=False)
-    run_sweep(cfg, paths["half"], workers=1, shard=(0, 2), tile_shape=(8, 8), progress=False)
+    small_sweep(cfg, paths["whole"], tile_shape=(8, 8))
+    small_sweep(cfg, paths["half"], shard=(0, 2), tile_shape=(8, 8))
     paths["drops"] = folder / "drops.csv"
     assert run("simulate-drops", SQUARE, "-o", paths["drops"], "--tracks", 4).exit_code == 0
     header, *rows = paths["drops"].read_text().splitlines()
@@ -462,14 +459,26 @@ def test_plot_of_an_incomplete_sweep_warns_on_one_line(half_sweep, tmp_path):
     assert result.exit_code == 0, result.stderr
     assert result.stderr.splitlines() == [f"warning: {half_sweep}: 128 of 256 cells not computed yet, drawn grey as "
                                           "'not computed' (finish the sweep with --resume, or merge its shards)"]
-    assert (tmp_path / "half.png").stat().st_size > 0
     assert "not computed" in run("plot", "--help").stdout
+    # the picture: 7 x 5 inches at the default 150 dpi; on the map, half the cells grey (not
+    # computed) and every side's colour in the share of the cells that rolled it
+    from dice_sweep import plotting
+    from dice_sweep.storage import read_sweep
+
+    png = tmp_path / "half.png"
+    assert png_size(png) == figure_pixels(plotting.OUTCOME_FIGSIZE, 150)
+    sweep = read_sweep(half_sweep)
+    drawn = {plotting.NOT_COMPUTED_COLOR: ~sweep.computed, plotting.UNDECIDED_COLOR: sweep.computed & (sweep.outcome == -1)}
+    for side, colour in enumerate(plotting.outcome_colors(sweep.sides)):
+        drawn[tuple(colour)] = sweep.computed & (sweep.outcome == side)
+    region = map_region(read_png(png), drawn)
+    for colour, cells in drawn.items():
+        assert share(region, colour) == pytest.approx(cells.mean(), abs=0.02), colour
+    assert share(region, plotting.NOT_COMPUTED_COLOR) == pytest.approx(0.5, abs=0.02)
 
 
 def test_plot_of_a_damaged_file_names_it_and_writes_nothing(half_sweep, tmp_path):
     """Issue 16: a corrupt chunk gave 'error: Can't synchronously read data (...)', no file named."""
-    from tests.test_storage import corrupt_first_chunk
-
     damaged = tmp_path / "damaged.h5"
     damaged.write_bytes(half_sweep.read_bytes())
     corrupt_first_chunk(damaged)

@@ -5,22 +5,18 @@ themselves, like remote machines) must give maps bitwise equal to the local run'
 resume a file that it or the local executor left incomplete.
 """
 
-from pathlib import Path
-
 import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from dice_sweep.cli import main  # noqa: E402
 from dice_sweep.config import load_config  # noqa: E402
 from dice_sweep.distributed import _check_workers, kernel_fingerprint  # noqa: E402
 from dice_sweep.errors import DiceSweepError  # noqa: E402
 from dice_sweep.storage import read_sweep  # noqa: E402
 from dice_sweep.sweep import SweepInterrupted, run_sweep  # noqa: E402
-from tests.test_sweep import TILE, assert_same_maps, stop_after  # noqa: E402
+from tests.helpers import ROOT, assert_same_maps, invoke, stop_after  # noqa: E402
+from tests.test_sweep import TILE  # noqa: E402
 from tests.test_sweep import cfg, reference  # noqa: E402, F401  (the same module-scoped fixtures)
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module")
@@ -105,22 +101,16 @@ def test_workers_with_another_kernel_are_refused():
 
 
 def test_cli_sweep_on_a_dask_scheduler(cluster, tmp_path):
-    from click.testing import CliRunner
-
     out = tmp_path / "cli.h5"
-    args = ["sweep", str(ROOT / "configs" / "demo.toml"), "-o", str(out), "--set", "grid.x.num=16",
-            "--set", "grid.y.num=16", "--executor", "dask", "--scheduler", cluster.scheduler_address]
-    result = CliRunner().invoke(main, args)
+    result = invoke("sweep", ROOT / "configs" / "demo.toml", "-o", out, "--set", "grid.x.num=16",
+                    "--set", "grid.y.num=16", "--executor", "dask", "--scheduler", cluster.scheduler_address)
     assert result.exit_code == 0, result.output
     assert "256 rolls" in result.output and "complete" in result.output
     assert read_sweep(out).complete
 
 
 def test_cli_refuses_refine_with_dask(tmp_path):
-    from click.testing import CliRunner
-
-    args = ["sweep", str(ROOT / "configs" / "demo.toml"), "-o", str(tmp_path / "x.h5"), "--refine", "2", "--executor", "dask"]
-    result = CliRunner().invoke(main, args)
+    result = invoke("sweep", ROOT / "configs" / "demo.toml", "-o", tmp_path / "x.h5", "--refine", "2", "--executor", "dask")
     assert result.exit_code == 2 and "--refine: cannot be combined" in result.output
 
 

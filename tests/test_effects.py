@@ -75,9 +75,19 @@ def test_measurement_maps_are_inverse_pairs():
 
 
 def test_declared_tracking_values_are_used():
+    """Without a fitted value the maps apply the [tracking] value the config declares, to the
+    angle alone (file phi = phi + offset) and back; a fitted value takes its place."""
     cfg = parse_config("[tracking]\nangle_offset = 0.1\n")
-    _, state_to_true, _ = effects.measurement_maps(cfg, {})
-    assert np.allclose(state_to_true(np.zeros((1, 6)))[0, 2], -0.1)
+    states = np.random.default_rng(1).normal(size=(5, 6))
+    given = states.copy()
+    _, state_to_true, pose_to_file = effects.measurement_maps(cfg, {})
+    true = state_to_true(states)
+    assert np.array_equal(states, given)  # a new array: the file's states untouched
+    assert np.array_equal(np.delete(true, 2, axis=1), np.delete(states, 2, axis=1))
+    assert np.allclose(true[:, 2], states[:, 2] - 0.1, rtol=0, atol=1e-15)
+    assert np.allclose(pose_to_file(true[:, :3]), states[:, :3], rtol=0, atol=1e-15)
+    _, fitted_to_true, _ = effects.measurement_maps(cfg, {"angle_offset": 0.03})
+    assert np.allclose(fitted_to_true(states)[:, 2], states[:, 2] - 0.03, rtol=0, atol=1e-15)
     assert effects.declared_effects(cfg) == ("angle_offset",)
 
 

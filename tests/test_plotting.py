@@ -3,18 +3,17 @@
 import subprocess
 import sys
 import textwrap
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from matplotlib.colors import hsv_to_rgb
-from matplotlib.image import imread
 from PIL import Image
 
 from dice_sweep import config, plotting, storage
 from dice_sweep.app.sweep import diagram_title, draw_sweep_file
 from dice_sweep.errors import DiceSweepError
+from tests.helpers import ROOT, figure_pixels, map_region, near, pixel_at, pixels_around, png_size, read_png
 
 COLOR_TOLERANCE = 1.5 / 255  # PNG stores 8 bits per channel
 
@@ -41,20 +40,6 @@ def falling_path(cfg, report, times):
 def grid_centres(lo, hi, num):
     """Cell centres of the sweep grid convention (docs/architecture.md)."""
     return lo + (np.arange(num) + 0.5) * (hi - lo) / num
-
-
-def pixels_around(fig, x, y, png_path, reach=0):
-    """RGBA pixels of the saved PNG within ``reach`` pixels of data point (x, y) of the first axes."""
-    fig.canvas.draw()
-    display_x, display_y = fig.axes[0].transData.transform((x, y))
-    image = imread(png_path)
-    row, column = image.shape[0] - 1 - int(display_y), int(display_x)
-    return image[row - reach : row + reach + 1, column - reach : column + reach + 1].reshape(-1, 4)
-
-
-def pixel_at(fig, x, y, png_path):
-    """RGBA of the saved PNG at data point (x, y) of the figure's first axes."""
-    return pixels_around(fig, x, y, png_path)[0]
 
 
 # Four uniform 10 x 10 blocks: side 0, side 1 (bottom), side 3, undecided (top).
@@ -225,10 +210,20 @@ def test_draw_sweep_file_writes_png_of_requested_size(tmp_path, dpi):
     h5 = write_block_sweep(tmp_path / "sweep.h5")
     png = draw_sweep_file(h5, tmp_path / "map.png", box=(10, 20, 0.1, 0.2), dpi=dpi)
     with open(png, "rb") as file:
-        header = file.read(24)
-    assert header[:8] == b"\x89PNG\r\n\x1a\n"
-    width, height = int.from_bytes(header[16:20], "big"), int.from_bytes(header[20:24], "big")
-    assert (width, height) == tuple(int(inches * dpi) for inches in plotting.OUTCOME_FIGSIZE)
+        assert file.read(8) == b"\x89PNG\r\n\x1a\n"
+    assert png_size(png) == figure_pixels(plotting.OUTCOME_FIGSIZE, dpi)
+    # the --box rectangle: white (no side's colour) on the map, where the box is: omega0 10 to
+    # 20 of 0 to 60, y0 0.1 to 0.2 of 0.02 to 0.30 (rows count down from 0.30)
+    block_colours = [*plotting.outcome_colors(4), plotting.UNDECIDED_COLOR]
+    region = map_region(read_png(png), block_colours, inset=0)
+    rows, columns = np.nonzero(near(region, (1.0, 1.0, 1.0), tol=0.45))  # every channel > 0.55: no block's colour
+    assert rows.size > 0, "no rectangle drawn"
+    height, width = region.shape[:2]
+    reach = 2.5 / width, 2.5 / height  # the frame's line, antialiased
+    assert columns.min() / width == pytest.approx(10 / 60, abs=reach[0])
+    assert columns.max() / width == pytest.approx(20 / 60, abs=reach[0])
+    assert rows.min() / height == pytest.approx((0.30 - 0.2) / 0.28, abs=reach[1])
+    assert rows.max() / height == pytest.approx((0.30 - 0.1) / 0.28, abs=reach[1])
 
 
 def test_cells_not_computed_have_their_own_colour_legend_entry_and_warning(tmp_path):
@@ -270,8 +265,8 @@ def test_plot_roll_draws_die_with_side_zero_in_red(tmp_path):
         table_one_config(separation=0.2), fake_report(), tmp_path / "roll.png", frames=6, dpi=60,
         path_sampler=falling_path,
     )
-    image = imread(png)
-    assert image.shape[:2] == tuple(int(inches * 60) for inches in plotting.ROLL_FIGSIZE[::-1])
+    image = read_png(png)
+    assert png_size(png) == figure_pixels(plotting.ROLL_FIGSIZE, 60)
     red = (image[..., 0] > 0.9) & (image[..., 1] < 0.2) & (image[..., 2] < 0.2)
     assert red.sum() > 20
 
@@ -293,8 +288,8 @@ def test_plotting_never_imports_pyplot(tmp_path):
     script = textwrap.dedent(
         f"""
         import sys
-        sys.path.insert(0, {str(Path(__file__).parent)!r})
-        from test_plotting import table_one_config, fake_report, falling_path, write_block_sweep
+        sys.path.insert(0, {str(ROOT)!r})
+        from tests.test_plotting import table_one_config, fake_report, falling_path, write_block_sweep
         from dice_sweep import plotting
         tmp = {str(tmp_path)!r}
         from dice_sweep.app.sweep import draw_sweep_file

@@ -117,7 +117,7 @@ def test_batch_gives_the_single_rolls():
 
 @pytest.mark.skipif("rigid" not in CONTACT_MODELS, reason="the kernel's rigid contact model is not there yet")
 def test_rigid_model_agrees_with_pymunk_away_from_basin_boundaries():
-    # Measured (docs/validation.md): on this 20 x 20 grid 97.25 % of all pixels and 100 % of the
+    # Measured (docs/dev/validation_history.md): on this 20 x 20 grid 97.25 % of all pixels and 100 % of the
     # 142 settled ones agree; on 64 x 64, 96.5 % and 99.8 %. The thresholds leave room for a few
     # pixels to flip and still fail a kernel with mu = 0.7 instead of 0.5 (94.3 % overall),
     # beta_normal = 0.3 (76.5 %) or the paper's law (61.8 %, 70 % settled).

@@ -2,9 +2,7 @@
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from dice_sweep.cli import main
 from dice_sweep.config import load_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.refine import (
@@ -13,12 +11,12 @@ from dice_sweep.refine import (
     compare_with_full,
     estimated_rolls,
     refine_maps,
-    roll_states,
     run_refined_sweep,
 )
 from dice_sweep.storage import read_refinement_maps, read_sweep
-from dice_sweep.sweep import SweepJob, initial_states, run_sweep
-from tests.test_cli import run
+from dice_sweep.sweep import SweepJob, initial_states, roll_states
+from tests.helpers import invoke, small_sweep
+from tests.helpers import run_cli as run
 
 
 def fig08(num):
@@ -29,7 +27,7 @@ def fig08(num):
 def full_fig08(tmp_path_factory):
     """A full sweep of fig08 at 128 x 128."""
     path = tmp_path_factory.mktemp("full") / "fig08.h5"
-    run_sweep(fig08(128), path, workers=1, progress=False)
+    small_sweep(fig08(128), path)
     return read_sweep(path)
 
 
@@ -101,15 +99,14 @@ def test_refined_file_has_the_sweep_layout_plus_the_mask(tmp_path, full_fig08):
 
 
 def test_cli_refine(tmp_path):
-    runner = CliRunner()
     out = tmp_path / "r.h5"
-    result = runner.invoke(main, ["sweep", "configs/fig08.toml", "-o", str(out), "--refine", "2",
-                                  "--set", "grid.x.num=32", "--set", "grid.y.num=32", "--workers", "1"])
+    result = invoke("sweep", "configs/fig08.toml", "-o", out, "--refine", "2",
+                    "--set", "grid.x.num=32", "--set", "grid.y.num=32", "--workers", "1")
     assert result.exit_code == 0, result.output
     assert "refined over 2 levels" in result.output
     for bad in (["--refine", "2", "--shard", "0/2"], ["--refine", "6"]):
-        result = runner.invoke(main, ["sweep", "configs/fig08.toml", "-o", str(tmp_path / "x.h5"), *bad,
-                                      "--set", "grid.x.num=32", "--set", "grid.y.num=32"])
+        result = invoke("sweep", "configs/fig08.toml", "-o", tmp_path / "x.h5", *bad,
+                        "--set", "grid.x.num=32", "--set", "grid.y.num=32")
         assert result.exit_code == 2 and result.output.count("\n") == 1, result.output
 
 
@@ -132,7 +129,7 @@ def test_refinement_that_cannot_save_rolls_the_full_grid_instead(tmp_path):
     assert refined.rolls_per_level == (64, 256, 0, 4096) and refined.rolls < refine_maps(cfg, 3, fallback=False).rolls
     assert lines == [refined.decision] and "rolled the full 64 x 64 grid instead, after level 1" in lines[0]
     path = tmp_path / "full.h5"
-    run_sweep(cfg, path, workers=1, progress=False)
+    small_sweep(cfg, path)
     stored = read_sweep(path)
     for name, values in refined.maps.items():
         np.testing.assert_array_equal(values, stored.maps[name], err_msg=name)

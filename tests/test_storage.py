@@ -27,6 +27,7 @@ from dice_sweep.storage import (
     read_sweep,
     rolls_to_maps,
 )
+from tests.helpers import corrupt_first_chunk
 
 DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs" / "hdf5.md"
 GOLDEN = pathlib.Path(__file__).resolve().parent / "golden"
@@ -254,14 +255,6 @@ def test_a_file_another_process_reads_cannot_be_resumed_now(held_open):
     message = open_error(path, writable=True)
     assert "wait for it to finish" in message and "remove" not in message
     assert str(exists_error(path, "remove it")) == f"{path}: exists; remove it"
-
-
-def corrupt_first_chunk(path, dataset="outcome"):
-    with h5py.File(path, "r") as h5:
-        offset = h5[dataset].id.get_chunk_info(0).byte_offset
-    with open(path, "r+b") as file:
-        file.seek(offset + 10)
-        file.write(b"\xff" * 20)
 
 
 def test_a_corrupt_chunk_is_an_error_naming_the_file(tmp_path):

@@ -28,6 +28,7 @@ from dice_sweep.sweep import (
     parse_shard,
     run_sweep,
 )
+from tests.helpers import assert_same_maps, stop_after
 
 # 7 rows x 10 columns in tiles of 3 x 4: 3 x 3 = 9 tiles, clipped at the bottom and right
 CONFIG_TEXT = """
@@ -57,29 +58,6 @@ def reference(cfg, tmp_path_factory):
 
 def sweep(cfg, path, **options):
     return run_sweep(cfg, path, tile_shape=TILE, progress=False, **options)
-
-
-def assert_same_maps(data, reference):
-    """Every map of two sweeps equal bitwise (NaNs included)."""
-    for name in ("outcome", "status", "impacts", "t_decided"):
-        assert getattr(data, name).tobytes() == getattr(reference, name).tobytes(), name
-    assert data.counts.keys() == reference.counts.keys()
-    for name, counts in data.counts.items():
-        assert counts.tobytes() == reference.counts[name].tobytes(), name
-    assert data.x.values.tobytes() == reference.x.values.tobytes()
-    assert data.y.values.tobytes() == reference.y.values.tobytes()
-
-
-def stop_after(n_tiles):
-    """An ``on_tile`` hook that presses Ctrl-C once ``n_tiles`` tiles are written."""
-    written = []
-
-    def on_tile(index, rolls):
-        written.append(index)
-        if len(written) == n_tiles:
-            raise KeyboardInterrupt
-
-    return on_tile
 
 
 # --- grid and tiles ----------------------------------------------------------------------

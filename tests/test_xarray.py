@@ -9,7 +9,6 @@ golden file, and one written as layout 1 was) still resume and merge, a merge gi
 
 import re
 import shutil
-from pathlib import Path
 
 import h5py
 import numpy as np
@@ -27,9 +26,9 @@ from dice_sweep.storage import (
     rolls_to_maps,
     write_refinement_maps,
 )
-from dice_sweep.sweep import SweepInterrupted, merge_parts, run_sweep
+from dice_sweep.sweep import SweepInterrupted, merge_parts
+from tests.helpers import ROOT, small_sweep
 
-ROOT = Path(__file__).resolve().parent.parent
 # t_max = 0.2 s: the low drops are decided, the high ones not (computed undecided rolls)
 OVERRIDES = ("grid.x.num=8", "grid.y.num=6", "integrator.t_max=0.2")
 TILE = (6, 4)  # two tiles: the left and right halves of the map
@@ -44,7 +43,7 @@ def demo_cfg():
 @pytest.fixture(scope="module")
 def complete_path(demo_cfg, tmp_path_factory):
     path = tmp_path_factory.mktemp("complete") / "demo.h5"
-    run_sweep(demo_cfg, path, workers=1, progress=False, tile_shape=TILE)
+    small_sweep(demo_cfg, path, tile_shape=TILE)
     return path
 
 
@@ -57,7 +56,7 @@ def partial_path(demo_cfg, tmp_path_factory):
 
     path = tmp_path_factory.mktemp("partial") / "demo.h5"
     with pytest.raises(SweepInterrupted):
-        run_sweep(demo_cfg, path, workers=1, progress=False, tile_shape=TILE, on_tile=stop)
+        small_sweep(demo_cfg, path, tile_shape=TILE, on_tile=stop)
     return path
 
 
@@ -202,7 +201,7 @@ def test_a_layout_1_file_resumes_in_its_own_layout_and_merges_into_layout_2(demo
         old.write_tile(0, *first, tile)
     partial = read_sweep(path)
     assert partial.computed[first].all() and not partial.computed.all() and (partial.outcome[~partial.computed] == -1).all()
-    summary = run_sweep(demo_cfg, path, workers=1, progress=False, tile_shape=TILE, resume=True)
+    summary = small_sweep(demo_cfg, path, tile_shape=TILE, resume=True)
     assert summary.complete and summary.rolls_computed == 24
     with h5py.File(path, "r") as h5:
         assert h5.attrs["dice_sweep_layout"] == 1 and "counts/pivots" in h5 and "x" in h5 and "pivots" not in h5

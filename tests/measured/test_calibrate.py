@@ -6,12 +6,13 @@ import math
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
+from matplotlib.colors import to_rgb
 
-from dice_sweep.cli import main
-from dice_sweep.measured.calibrate import calibrate, summarise
+from dice_sweep import plotting
+from dice_sweep.measured.calibrate import COEFFICIENTS, calibrate, summarise
 from dice_sweep.measured.impacts import lowest_height
 from dice_sweep.measured.tracks import TrackSet, load_tracks
+from tests.helpers import figure_pixels, invoke, near, png_size, read_png
 from tests.measured import drops
 from tests.measured.test_tracks import real_tracks
 
@@ -99,18 +100,31 @@ def test_calibrate_command_writes_json_and_png(tmp_path):
     data = drops.write_csv(tmp_path / "drops.csv.gz", drops.to_file(times, truth, seed=8))
     config = tmp_path / "die.toml"
     config.write_text(f"[die]\nsides = 4\ncircumradius = {drops.RADIUS!r}\n")
-    runner = CliRunner()
     out_json, out_png = tmp_path / "cal.json", tmp_path / "cal.png"
-    result = runner.invoke(main, ["calibrate", str(data), "--config", str(config), "--angle", "auto", "--json", str(out_json), "--png", str(out_png)])
+    result = invoke("calibrate", data, "--config", config, "--angle", "auto", "--json", out_json, "--png", out_png)
     assert result.exit_code == 0, result.output
-    assert "beta_normal" in result.output and out_png.stat().st_size > 10_000
+    assert "beta_normal" in result.output
     report = json.loads(out_json.read_text())
     assert len(report["impacts"]) >= 4 and report["summary"]["first"]["beta_normal"]["n"] == 4
-    bad = runner.invoke(main, ["calibrate", str(config), "--config", str(config)])
+    # the picture at its size (120 dpi), one panel a coefficient in a 2 x 2 grid, each with the
+    # first impacts' bars (tab:blue at alpha 0.6 on white; more than the legend's swatch) and
+    # their median, a dashed tab:blue line down the panel
+    assert png_size(out_png) == figure_pixels(plotting.CALIBRATION_FIGSIZE, 120)
+    image = read_png(out_png)
+    half_height, half_width = image.shape[0] // 2, image.shape[1] // 2
+    bars = 1 - 0.6 * (1 - np.array(to_rgb("tab:blue")))
+    assert len(COEFFICIENTS) == 4
+    for row in (0, 1):
+        for column in (0, 1):
+            panel = image[row * half_height : (row + 1) * half_height, column * half_width : (column + 1) * half_width]
+            assert near(panel, bars).sum() > 1000, (row, column)
+            # a 1-point line is 1.7 pixels wide at 120 dpi: antialiased, so a wider tolerance
+            assert near(panel, to_rgb("tab:blue"), tol=0.2).sum(axis=0).max() > 0.3 * half_height, (row, column)
+    bad = invoke("calibrate", config, "--config", config)
     assert bad.exit_code == 2 and bad.output.count("\n") == 1 and "column" in bad.output
-    no_rate = runner.invoke(main, ["calibrate", str(data), "--config", str(config), "--rate", "-5"])
+    no_rate = invoke("calibrate", data, "--config", config, "--rate", "-5")
     assert no_rate.exit_code == 2 and "rate" in no_rate.output
-    help_text = runner.invoke(main, ["calibrate", "--help"]).output
+    help_text = invoke("calibrate", "--help").output
     assert "Example: dice-sweep calibrate" in help_text
 
 

@@ -3,10 +3,11 @@ generator: the JSON contract, --json alone, Markdown with few tracks, and bad in
 
 import json
 
+import numpy as np
 import pytest
-from click.testing import CliRunner
+from matplotlib.colors import to_rgb
 
-from dice_sweep.cli import main
+from tests.helpers import figure_pixels, invoke, near, png_size, read_png
 from tests.measured.cases import DECLARED_RIGID
 from tests.measured.cases import TRUTH as CASE_TRUTH
 from tests.measured.independent import Truth, simulate_drops, write_csv
@@ -23,10 +24,6 @@ def files(tmp_path_factory):
     config = folder / "die.toml"
     config.write_text(CONFIG)
     return data, config
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 def test_diagnose_with_json_alone_keeps_the_contract(files, tmp_path):
@@ -59,7 +56,16 @@ def test_fit_and_markdown_with_few_tracks(files, tmp_path):
                     "--png", tmp_path / "png")
     assert result.exit_code == 0, result.output
     assert "Verdict" in (tmp_path / "f.md").read_text()
-    assert (tmp_path / "png" / "residual_error_vs_time.png").stat().st_size > 1000
+    # 7 x 4 inches at 100 dpi: the two fits' curves (baseline in C0, after in C1, drawn last)
+    # across the time axis, and the grey line at the first impact across the plot's height
+    png = tmp_path / "png" / "residual_error_vs_time.png"
+    width, height = png_size(png)
+    assert (width, height) == figure_pixels((7, 4), 100)
+    image = read_png(png)
+    assert near(image, to_rgb("C0"), tol=0.1).sum() > 50  # its legend entries at least
+    _, columns = np.nonzero(near(image, to_rgb("C1"), tol=0.1))
+    assert columns.size > 1000 and np.ptp(columns) > 0.6 * width
+    assert near(image, to_rgb("grey"), tol=0.1).sum(axis=0).max() > 0.7 * height
 
 
 NO_USABLE_TRACK = {

@@ -13,9 +13,8 @@ import math
 
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from dice_sweep.cli import main, simulate_drops_command
+from dice_sweep.cli import simulate_drops_command
 from dice_sweep.config import parse_config
 from dice_sweep.measured import simulate
 from dice_sweep.physics import layout
@@ -26,6 +25,7 @@ from dice_sweep.physics import COUNT_COLUMNS, pack_params
 from dice_sweep.physics.kernel import REC_WIDTH, roll_one, sample_batch
 from dice_sweep.physics.params import FP_TMAX, IP_CONTINUE
 from dice_sweep.roll import RollReport, sample_path
+from tests.helpers import invoke
 
 RADIUS = 0.06 / math.sqrt(2)  # m, the square of configs/square_drops.toml
 SQUARE = f'[die]\nsides = 4\ncircumradius = {RADIUS!r}\n[contact]\nmodel = "paper"\nbeta_normal = 0.2\nbeta_tangential = -0.35\n'
@@ -37,10 +37,6 @@ CLEAN = {"noise": (0.0, 0.0, 0.0), "drop_prob": 0.0, "glitch_prob": 0.0}
 
 def config(text=SQUARE, overrides=()):
     return parse_config(text, "die.toml", overrides)
-
-
-def invoke(*args):
-    return CliRunner().invoke(main, [str(a) for a in args])
 
 
 def reference_path(cfg, state, times, duration):
@@ -295,7 +291,7 @@ def _config_file(folder, text=SQUARE):
 )
 def test_bad_options_are_one_line_errors_before_any_work(tmp_path, options, fragments):
     out = tmp_path / "out.csv"
-    result = CliRunner().invoke(main, ["simulate-drops", str(_config_file(tmp_path)), "-o", str(out), *options])
+    result = invoke("simulate-drops", _config_file(tmp_path), "-o", out, *options)
     assert result.exit_code == 2, result.output
     lines = result.output.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: ") and "Traceback" not in result.output, result.output
