@@ -1,0 +1,140 @@
+"""Malformed inputs against every command (issue 16): each must exit with code 2 and one
+stderr line starting "error:", with no traceback and no output file left behind.
+
+    python scripts/bad_inputs.py
+
+Builds its own fixtures in a temporary folder (a small sweep file and synthetic drops),
+runs about 240 malformed invocations of the installed `dice-sweep` (two at a time) and
+prints each one that breaks the rule, then the count that keep it. Exit code 1 if any breaks it.
+"""
+import gzip
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+C = str(Path(__file__).resolve().parent.parent / "configs")
+T = Path(tempfile.mkdtemp(prefix="bad_inputs_"))
+W = T / "work"
+W.mkdir()
+env0 = dict(os.environ, DICE_SWEEP_COMPILE_NOTE="0")
+subprocess.run(["dice-sweep", "sweep", f"{C}/demo.toml", "-o", str(T / "good.h5"), "--set", "grid.x.num=16", "--set", "grid.y.num=16", "--quiet"], check=True, env=env0)
+subprocess.run(["dice-sweep", "simulate-drops", f"{C}/square_drops.toml", "-o", str(T / "drops.csv"), "--tracks", "6", "--seed", "1"], check=True, env=env0, capture_output=True)
+def w(name, data, mode="w"):
+    p = W / name
+    if isinstance(data, bytes): p.write_bytes(data)
+    else: p.write_text(data)
+    return str(p)
+demo = open(f"{C}/demo.toml").read()
+table1 = open(f"{C}/table1.toml").read()
+sq = open(f"{C}/square_drops.toml").read()
+good_csv = (T/"drops.csv").read_text()
+F = {
+ "missing": str(W/"nope.toml"), "dir": str(W), "empty": w("empty.h5", ""), "binary": w("bin.toml", b"\x00\xff\xfe\x89PNG"),
+ "badtoml": w("bad.toml", "[die\nsides = 4"), "unknown_sec": w("us.toml", table1 + "\n[foo]\nx = 1\n"),
+ "nan": w("nan.toml", table1.replace("y0 = 0.15", "y0 = nan")), "inf": w("inf.toml", table1.replace("y0 = 0.15", "y0 = inf")),
+ "str_num": w("sn.toml", table1.replace("y0 = 0.15", 'y0 = "high"')), "bool": w("bool.toml", table1.replace("sides = 4", "sides = true")),
+ "float_sides": w("fs.toml", table1.replace("sides = 4", "sides = 4.5")), "list": w("list.toml", table1.replace("y0 = 0.15", "y0 = [0.1]")),
+ "neg_r": w("negr.toml", table1.replace("circumradius = 0.013435028842544402", "circumradius = -0.01")),
+ "below": w("below.toml", table1.replace("y0 = 0.15", "y0 = 0.001")), "tmax0": w("tm.toml", table1.replace("t_max = 30.0", "t_max = 0")),
+ "bom": w("bom.toml", "\ufeff" + table1), "latin1": w("l1.toml", (table1 + "# caf\xe9\n").encode("latin-1")),
+ "dup": w("dup.toml", table1.replace("y0 = 0.15", "y0 = 0.15\ny0 = 0.2")),
+ "grid_minmax": w("gmm.toml", demo.replace("min = 0.0, max = 60.0", "min = 60.0, max = 0.0")),
+ "grid_param": w("gp.toml", demo.replace('param = "omega0"', 'param = "omega"')),
+ "grid_same": w("gs.toml", demo.replace('param = "omega0"', 'param = "y0"')),
+ "grid_num": w("gn.toml", demo.replace("num = 128 }  # rad/s", "num = 1000000000 }")),
+ "grid_below": w("gb.toml", demo.replace("min = 0.02", "min = -0.5")),
+ "csv_empty": w("e.csv", ""), "csv_header": w("h.csv", "traj,t,x,y,phi\n"), "csv_badhead": w("bh.csv", "a,b,c\n1,2,3\n"),
+ "csv_text": w("tx.csv", good_csv.replace("0.1350882931", "abc", 1)), "csv_nan": w("nan.csv", "traj,t,x,y,phi\n" + "".join(f"1,{i*0.004},nan,nan,nan\n" for i in range(50))),
+ "csv_short": w("sh.csv", "traj,t,x,y,phi\n1,0,0,0.1,0\n"), "gz_bad": w("bad.csv.gz", b"not gzip at all"),
+ "gz_trunc": w("tr.csv.gz", gzip.compress(good_csv.encode())[:200]), "csv_bin": w("b.csv", b"\x00\x01\x02\xff"*100),
+ "csv_dupt": w("dt.csv", "traj,t,x,y,phi\n" + "1,0,0,0.1,0\n"*40),
+ "csv_backt": w("bt.csv", "traj,t,x,y,phi\n" + "".join(f"1,{-i*0.004},0,{0.1+i*1e-4},0\n" for i in range(40))),
+ "h5_not": w("not.h5", b"hello"), "h5_other": None, "h5_trunc": None,
+
+}
+import h5py, numpy as np
+with h5py.File(W/"other.h5", "w") as f: f["x"] = np.arange(3)
+F["h5_other"] = str(W/"other.h5")
+good = (T/"good.h5").read_bytes(); F["h5_trunc"] = w("trunc.h5", good[: len(good)//2])
+G = str(T/"good.h5"); D = str(T/"drops.csv")
+cases = []
+def add(*args, out=None):
+    cases.append((list(args), out))
+for key in ["missing","dir","binary","badtoml","unknown_sec","nan","inf","str_num","bool","float_sides","list","neg_r","below","tmax0","bom","latin1","dup"]:
+    add("roll", F[key])
+for key in ["grid_minmax","grid_param","grid_same","grid_num","grid_below","nan","missing"]:
+    add("sweep", F[key], "-o", str(W/f"s_{key}.h5"), out=W/f"s_{key}.h5")
+# initial.y0=-1 puts the roll's start in the table (fig08 sweeps y0, roll starts from [initial])
+add("roll", f"{C}/fig08.toml", "--set", "initial.y0=-1")
+for k, s in enumerate(["initial.y0=abc", "nokey", "die.sides=2", "grid.x.num=0", "die.=3", "=3", "initial.y0=", "integrator.method=rk4", "contact.model=foo", "world.g=-9.81", "world.g=0", "contact.beta_normal=1.5", "contact.friction=-1", "effects.air_drag=-1", "effects.foo=1", "grid.x.min=nan", "grid.x.param=foo", "grid.y.min=-0.5"]):
+    add("roll", f"{C}/fig08.toml", "--set", s)
+    add("sweep", f"{C}/demo.toml", "-o", str(W/f"set{k}.h5"), "--set", s, out=W/f"set{k}.h5")
+sw = lambda *a, out="sw.h5": add("sweep", f"{C}/demo.toml", "-o", str(W/out), *a, out=W/out)
+for a in [("--workers","0"),("--workers","-1"),("--workers","99999"),("--workers","x"),("--shard","3/2"),("--shard","a/b"),("--shard","0/0"),("--shard","1"),("--shard","-1/2"),
+          ("--refine","-1"),("--refine","100"),("--refine","x"),("--executor","foo"),("--scheduler","tcp://x:1"),("--png","/missing/dir/a.png"),("--png",str(W/"a.xyz")),("--png",str(W/"p.h5")),("--png",str(W))]:
+    sw(*a)
+add("sweep", f"{C}/table1.toml", "-o", str(W/"nogrid.h5"), out=W/"nogrid.h5")
+add("sweep", f"{C}/demo.toml", "-o", str(W), out=None)
+add("sweep", f"{C}/demo.toml", "-o", str(W/"x.png"), out=W/"x.png")
+add("sweep", f"{C}/demo.toml", "-o", "/proc/x.h5")
+add("sweep", f"{C}/demo.toml", "-o", "")
+add("sweep", f"{C}/demo.toml", "-o", G)  # exists
+add("sweep", f"{C}/fig08.toml", "-o", G, "--resume")  # other run
+add("merge", "-o", str(W/"m.h5"), out=W/"m.h5")
+add("merge", F["missing"], "-o", str(W/"m.h5"), out=W/"m.h5")
+add("merge", F["h5_not"], "-o", str(W/"m.h5"), out=W/"m.h5")
+add("merge", G, F["h5_other"], "-o", str(W/"m.h5"), out=W/"m.h5")
+add("merge", G, "-o", G)
+add("merge", G, G, "-o", str(W/"m.h5"), out=W/"m.h5")
+for key in ["missing","dir","h5_not","h5_other","h5_trunc","empty"]:
+    add("plot", F[key], "-o", str(W/f"p_{key}.png"), out=W/f"p_{key}.png")
+for a in [("--dpi","0"),("--dpi","100000"),("--dpi","x"),("--box","1,2,3"),("--box","nan,1,2,3"),("--box","5,1,0.1,0.2"),("--box","a,b,c,d"),("-o",str(W/"b.xyz")),("-o","/missing/x.png"),("-o",str(W))]:
+    add("plot", G, "-o", str(W/"pp.png"), *a, out=W/"pp.png")
+for a in [("--box-size","0"),("--box-size","-3"),("--box-size","100000"),("--json",str(W)),("--json","/missing/a.json"),("--png",G),("--json",str(W/"a.txt"))]:
+    add("measure", G, *a)
+for key in ["missing","h5_not","h5_other","h5_trunc"]:
+    add("measure", F[key])
+for a in [("--sigma","omega0"),("--sigma","omega0=-1"),("--sigma","foo=1"),("--sigma","omega0=nan"),("--sigma","omega0=abc"),("--samples","0"),("--points","0"),("--seed","-1"),("--method","foo"),("-o",str(W/"c.txt")),("--workers","0"),("--png",G)]:
+    add("control", G, *a)
+add("control", G)  # no --sigma
+for cmd in ["fit","calibrate","diagnose"]:
+    for key in ["missing","dir","csv_empty","csv_header","csv_badhead","csv_text","csv_nan","csv_short","gz_bad","gz_trunc","csv_bin","csv_dupt","csv_backt"]:
+        add(cmd, F[key], "--config", f"{C}/square_drops.toml")
+    for a in [("--rate","0"),("--rate","-5"),("--rate","nan"),("--rate","x"),("--angle","foo"),("--config",F["missing"]),("--config",F["nan"]),("--json",str(W)),("--json","/missing/r.json"),("--png",G)]:
+        add(cmd, D, "--config", f"{C}/square_drops.toml", *a)
+    add(cmd, D)
+add("fit", D, "--config", f"{C}/square_drops.toml", "--effects", "foo")
+add("fit", D, "--config", f"{C}/square_drops.toml", "--effects", ",")
+add("diagnose", D, "--config", f"{C}/square_drops.toml", "--md", str(W/"r.txt"))
+add("calibrate", D, "--config", f"{C}/square_drops.toml", "--gaps", "foo")
+sd = lambda *a, out="sd.csv": add("simulate-drops", f"{C}/square_drops.toml", "-o", str(W/out), *a, out=W/out)
+for a in [("--tracks","0"),("--tracks","x"),("--tracks","-2"),("--tracks","1000001"),("--tracks","3","--noise","1,2"),("--tracks","3","--noise","-1,0,0"),("--tracks","3","--noise","a,b,c"),
+          ("--tracks","3","--drop-prob","1.5"),("--tracks","3","--glitch-prob","-0.1"),("--tracks","3","--duration","0"),("--tracks","3","--duration","nan"),("--tracks","3","--range","foo=1:2"),
+          ("--tracks","3","--range","y0=2:1"),("--tracks","3","--range","y0=-1:0"),("--tracks","3","--range","y0"),("--tracks","3","--initial","foo"),("--tracks","3","--rate","0"),("--tracks","3","--seed","-1"),("--tracks","3","--set","die.sides=2")]:
+    sd(*a)
+add("simulate-drops", f"{C}/square_drops.toml", "-o", str(W/"x.txt"), "--tracks", "3", out=W/"x.txt")
+add("simulate-drops", f"{C}/square_drops.toml", "-o", str(W), "--tracks", "3")
+add("simulate-drops", F["missing"], "-o", str(W/"y.csv"), "--tracks", "3", out=W/"y.csv")
+def run(case):
+    args, out = case
+    env = dict(os.environ, DICE_SWEEP_COMPILE_NOTE="0")
+    r = subprocess.run(["dice-sweep", *args], capture_output=True, text=True, env=env, timeout=600)
+    lines = [l for l in r.stderr.splitlines() if l.strip()]
+    problems = []
+    if r.returncode != 2: problems.append(f"rc={r.returncode}")
+    if "Traceback" in r.stderr: problems.append("traceback")
+    if len(lines) != 1: problems.append(f"{len(lines)} stderr lines")
+    elif not lines[0].startswith("error:"): problems.append("no error: prefix")
+    if out is not None and Path(out).exists(): problems.append("output left")
+    return args, problems, (lines[-1] if lines else r.stdout.strip()[-200:])
+with ThreadPoolExecutor(2) as ex:
+    res = list(ex.map(run, cases))
+bad = [r for r in res if r[1]]
+for args, problems, last in bad:
+    print(" ".join(a.replace(str(W)+"/", "W/").replace(C+"/","C/").replace(str(T) + "/", "T/") for a in args), "=>", problems, "|", last[:200])
+print(f"{len(res) - len(bad)} of {len(res)} meet the rule")
+shutil.rmtree(T, ignore_errors=True)
+sys.exit(1 if bad else 0)
