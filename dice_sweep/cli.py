@@ -455,6 +455,49 @@ def calibrate_command(data, config_path, rate, angle, gaps, json_path, png_path)
         _report_written(path)
 
 
+# --- side forecasts of tracked drops (issue 18, docs/forecast.md) ----------------------------
+
+
+@main.command(name="forecast")
+@click.argument("data", metavar="DATA")
+@_data_options
+@click.option("--fit", "fit_path", required=True, metavar="FIT.json", help="The JSON of dice-sweep fit --json or diagnose --json on this die: the model, its parameters and their bootstrap draws, and the split (its confirmation tracks are the held-out tracks).")
+@click.option("--from-bounce", "from_bounce", default="0", show_default=True, callback=_number(int, "0 to 5"), metavar="K", help="Forecast from the flight after bounce K (0: from the release), 0 to 5; every other flight enough held-out tracks have is scored too (by_bounce).")
+@click.option("--members", default="2000", show_default=True, callback=_number(int, "1000 to 1000000"), metavar="N", help="Ensemble members per track and forecast point, 1000 to 1000000.")
+@click.option("--seed", default="0", show_default=True, callback=_number(int, "a whole number >= 0"), metavar="S", help="Seed of the ensembles' draws.")
+@click.option("--workers", type=int, callback=_workers, help="Worker processes, 1 to 1024 [default: all cores].")
+@click.option("--map-size", "map_size", default="512", show_default=True, callback=_number(int, "16 to 2048, or 0"), metavar="N", help="Cells per axis of the final-state map of the release states (as docs/chaos.md's maps), 16 to 2048; 0: no map.")
+@click.option("--map-axes", "map_axes", metavar="A,B", help="The map's two initial values, e.g. phi0,omega0 [default: the two that vary most over the drops].")
+@click.option("--json", "json_path", required=True, metavar="OUT.json", help="Write the forecasts and scores to this JSON file (docs/forecast.md: its keys).")
+@click.option("--md", "md_path", metavar="OUT.md", help="Also write a readable Markdown report.")
+@click.option("--png", "png_dir", metavar="DIR", help="Draw reliability.png, skill_by_bounce.png and release_map.png into this folder.")
+@click.option("--quiet", is_flag=True, help="No progress lines.")
+def forecast_command(data, config_path, rate, angle, fit_path, from_bounce, members, seed, workers, map_size, map_axes, json_path, md_path,
+                     png_dir, quiet):
+    """Probability of each side for the held-out tracked drops of DATA, from what was seen before
+    they landed: for every track an ensemble drawn from the uncertainty of its state in the
+    frames of the flight forecast from (and of the fit's parameters), rolled to rest; scored
+    against the side it rested on (log score, Brier score, beside 1/n and the deterministic
+    forecast, with 95 % intervals over tracks), from every flight; and where the throws sit in
+    the final-state map of their release states.
+
+    \b
+    Example: dice-sweep forecast drops.csv --config configs/square_drops.toml --fit fit.json --json forecast.json --png out/forecast
+    """
+    from dice_sweep.app.forecast import run_forecast_command
+
+    _compile_notice()
+    report = run_forecast_command(data, _load(config_path, ()), fit_path, from_bounce=from_bounce, members=members, seed=seed, rate=rate,
+                                  angle=angle, workers=workers, map_size=map_size, map_axes=map_axes, json_path=json_path,
+                                  md_path=md_path, png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
+    s = report["scores"]
+    click.echo(f"from flight {s['from_bounce']}, {s['n_tracks']} held-out tracks: log score {s['log_score']['value']:.3f} "
+               f"[{s['log_score']['ci95'][0]:.3f}, {s['log_score']['ci95'][1]:.3f}] (uniform {s['log_score_uniform']['value']:.3f}), "
+               f"Brier {s['brier']['value']:.3f} [{s['brier']['ci95'][0]:.3f}, {s['brier']['ci95'][1]:.3f}] "
+               f"(uniform {s['brier_uniform']['value']:.3f}); most likely side right {100 * s['share_correct_most_likely']['value']:.0f} %, "
+               f"deterministic {100 * s['share_correct_deterministic']['value']:.0f} %")
+
+
 # --- the map in the browser (issue 19, docs/view.md) ---------------------------------------
 
 

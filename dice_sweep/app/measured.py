@@ -83,6 +83,9 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
         "converged": fit.converged,
         "angle_reading": trackset.angle_note,
         "glitch_frames": trackset.glitch_count,
+        "data": {"path": str(data_path)},
+        "bootstrap_draws": loop.bootstrap_record(fit.free, draws),
+        **loop.fit_context(cfg, loop.CONFIRM_FRACTION, seed),
     }
     if json_path:
         write_json(json_path, jsonable(result))

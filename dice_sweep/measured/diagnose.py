@@ -225,6 +225,20 @@ def bootstrap_params(red, segments, names, values, cfg, rng, draws=BOOTSTRAP):
     return np.array([values[n] for n in names]) + step
 
 
+def bootstrap_record(names, draws):
+    """A fit's bootstrap draws for its JSON (``bootstrap_draws``: ``forecast`` samples the
+    parameters from them, issue 18)."""
+    return {"names": list(names), "values": np.asarray(draws, dtype=float).reshape(-1, len(names)).tolist(),
+            "method": "one-step bootstrap over the selection tracks (docs/measured_method.md), one row per resample"}
+
+
+def fit_context(cfg, confirm_fraction, seed):
+    """The die and the split of a fit, for its JSON (``forecast`` checks the die and scores
+    the same confirmation tracks)."""
+    return {"die": {"sides": cfg.die.sides, "circumradius": cfg.die.circumradius},
+            "split": {"confirm_fraction": confirm_fraction, "seed": seed}}
+
+
 def _bootstrap_quantiles(values, statistic, rng, draws):
     """2.5 % and 97.5 % quantiles of ``statistic`` over resamples of ``values`` (tracks)."""
     stats = [statistic(values[rng.integers(0, values.size, values.size)]) for _ in range(draws)]
@@ -792,4 +806,6 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         params[name] = {"value": entry["value"], "ci95": entry["ci95"], "at_bound": entry["at_bound"], "unit": entry["unit"],
                         "one_track_decides": entry["one_track_decides"], "top_track_share": entry["top_track_share"]}
     report["params"] = params
+    report["bootstrap_draws"] = bootstrap_record(current.free, draws_after)
+    report.update(fit_context(cfg, confirm_fraction, seed))
     return report

@@ -11,7 +11,8 @@ rolls (outcome -1) are black; cells of an incomplete sweep not computed yet are 
 By domain: :mod:`~dice_sweep.plotting.common` (colours, sizes, formats, labels),
 :mod:`~dice_sweep.plotting.maps` (final-state diagrams), :mod:`~dice_sweep.plotting.roll`
 (one roll), :mod:`~dice_sweep.plotting.chaos` (measures and control maps) and
-:mod:`~dice_sweep.plotting.measured` (the measured-data loop).
+:mod:`~dice_sweep.plotting.measured` (the measured-data loop) and
+:mod:`~dice_sweep.plotting.forecast` (side forecasts of tracked drops).
 """
 
 from dice_sweep.plotting.common import (  # noqa: F401
@@ -65,4 +66,10 @@ from dice_sweep.plotting.measured import (  # noqa: F401
     CALIBRATION_RANGE,
     plot_calibration,
     plot_residual_curves,
+)
+from dice_sweep.plotting.forecast import (  # noqa: F401
+    FORECAST_FIGSIZE,
+    plot_release_map,
+    plot_reliability,
+    plot_skill_by_bounce,
 )

@@ -1,0 +1,235 @@
+"""The ``forecast`` command (issue 18): a track file and a fit in; side probabilities of the
+held-out drops, their scores, the map of the release states, JSON, Markdown and pictures out.
+
+The forecast itself is dice_sweep.measured.forecast; the map is a sweep over the release
+states (dice_sweep.sweep's worker pool) measured by dice_sweep.chaos; pictures are
+dice_sweep.plotting's.
+"""
+
+import dataclasses
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dice_sweep.chaos.measures import DEFAULT_BOX_SIZE, measure_map
+from dice_sweep.config import PARAM_UNITS, Axis, Grid
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.measured import diagnose as loop
+from dice_sweep.measured import forecast as fc
+from dice_sweep.measured.report import jsonable
+from dice_sweep.measured.tracks import load_tracks
+from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
+
+MAP_SIZE = 512  # cells per axis of the release map: docs/chaos.md measures its maps at 512 x 512
+MAP_SIZES = (16, 2048)  # --map-size (0: no map)
+PICTURES = ("reliability.png", "skill_by_bounce.png", "release_map.png")
+
+
+def read_fit_file(path, cfg):
+    """:func:`dice_sweep.measured.forecast.parse_fit` of a JSON file, with one-line errors for a
+    file that cannot be read or is not JSON."""
+    try:
+        text = Path(path).read_text()
+    except OSError as error:
+        raise DiceSweepError(f"--fit: {path}: cannot be read ({error.strerror or error}) "
+                             "(allowed: the JSON written by dice-sweep fit --json or dice-sweep diagnose --json)") from None
+    try:
+        data = json.loads(text)
+    except (json.JSONDecodeError, UnicodeDecodeError) as error:
+        raise DiceSweepError(f"--fit: {path}: not JSON ({error}) "
+                             "(allowed: the JSON written by dice-sweep fit --json or dice-sweep diagnose --json)") from None
+    return fc.parse_fit(data, path, cfg, loop.CONFIRM_FRACTION, 0)
+
+
+def parse_map_axes(text):
+    """``"A,B"`` -> (A, B), two different initial values; None stays None (the default axes)."""
+    if text is None:
+        return None
+    names = tuple(part.strip() for part in text.split(","))
+    if len(names) != 2 or names[0] == names[1] or not all(name in fc.STATE_COLUMNS for name in names):
+        raise DiceSweepError(f"--map-axes: {text!r} is not two different initial values (allowed: two of {', '.join(fc.STATE_COLUMNS)}, "
+                             "e.g. phi0,omega0)")
+    return names
+
+
+def _check_map_size(size):
+    low, high = MAP_SIZES
+    if size != 0 and not low <= size <= high:
+        raise DiceSweepError(f"--map-size: {size} is outside the allowed range [{low}, {high}] (or 0: no map)")
+
+
+def _check_angle(source, angle):
+    """The fit and the forecast must read the file's angle the same way."""
+    reading = source.angle_reading
+    if isinstance(reading, str) and ("as-is:" in reading) != (angle == "as-is"):
+        other = "as-is" if angle == "auto" else "auto"
+        raise DiceSweepError(f"--angle: {angle}: the fit was made with --angle {other} (its angle_reading: {reading[:60]}...) "
+                             f"(allowed: the --angle the fit was made with, {other})")
+
+
+# --- the map of the release states -----------------------------------------------------------
+
+
+def release_map(cfg, source, run, size, axes=None, workers=1):
+    """The final-state map over the release states (the two initial values that vary most,
+    or ``axes``), the other initial values at the drops' medians, the fitted parameters;
+    its chaos measures and where the drops sit. Returns (JSON-ready dict, picture data)."""
+    from dice_sweep.sweep import SweepJob, initial_states, roll_states
+
+    flights = run.release
+    states = fc.true_states(cfg, source.params, np.array([f.state for f in flights]).reshape(-1, 6))
+    observed = np.array([run.observed[f.traj] for f in flights], dtype=np.int64)
+    held = np.array([f.traj in run.held_out_traj for f in flights], dtype=bool)
+    chosen = fc.choose_map_axes(states, cfg) if axes is None else tuple(axes)
+    columns = [fc.STATE_COLUMNS.index(name) for name in chosen]
+    sides = cfg.die.sides
+    centre = fc.phase_centre(states[:, 2], sides)
+    folded, turns = fc.fold_phase(states[:, 2], sides, centre)
+    if "phi0" in chosen:  # a turn by 2 pi / n is the same throw with the sides renamed
+        states = states.copy()
+        states[:, 2] = folded
+        shown_side = (observed + turns) % sides
+    else:
+        shown_side = observed
+    ranges = [fc.map_range(states[:, c], name, cfg) for name, c in zip(chosen, columns)]
+    fixed = np.median(states, axis=0)
+    model = fc.physical_config(cfg, source.spec(cfg), source.params)
+    model = model.with_initial(**{name: float(fixed[k]) for k, name in enumerate(fc.STATE_COLUMNS) if name not in chosen})
+    grid = Grid(Axis(chosen[0], *ranges[0], size), Axis(chosen[1], *ranges[1], size))
+    model = dataclasses.replace(model, grid=grid)
+    xs, ys = grid.x.values(), grid.y.values()
+    starts = initial_states(model, xs, ys)
+    clear = fc.clear_starts(model, starts)
+    outcome = np.full(len(starts), -1, np.int8)
+    if clear.any():
+        outcome[clear] = roll_states(SweepJob.from_config(model), starts[clear], workers)[0]
+    outcome = outcome.reshape(size, size)
+    measures = measure_map(outcome, sides, DEFAULT_BOX_SIZE, x_step=(ranges[0][1] - ranges[0][0]) / size,
+                           y_step=(ranges[1][1] - ranges[1][0]) / size)
+    col = np.floor((states[:, columns[0]] - ranges[0][0]) / (ranges[0][1] - ranges[0][0]) * size).astype(np.int64)
+    row = np.floor((states[:, columns[1]] - ranges[1][0]) / (ranges[1][1] - ranges[1][0]) * size).astype(np.int64)
+    inside = (col >= 0) & (col < size) & (row >= 0) & (row < size)
+    box = measures.entropy.box_entropy
+    boxed = inside & (row // DEFAULT_BOX_SIZE < box.shape[0]) & (col // DEFAULT_BOX_SIZE < box.shape[1])
+    local = box[row[boxed] // DEFAULT_BOX_SIZE, col[boxed] // DEFAULT_BOX_SIZE]
+    agrees = outcome[row[inside], col[inside]] == shown_side[inside]
+    block = np.median(np.array([f.cov[np.ix_(columns, columns)] for f in flights]), axis=0)
+    cell = np.array([(r[1] - r[0]) / size for r in ranges])
+    spread = fc.spreads(states, cfg)
+    summary = {
+        "axes": list(chosen),
+        "axes_rule": ("the two initial values whose spread over the drops' release states (standard deviation in the die's own "
+                      "scales: R for x0, y0; 2 pi / n for phi0, folded about its circular mean; sqrt(g R) for vx0, vy0; sqrt(g / R) "
+                      "for omega0; x0 only between walls) is largest" if axes is None else "given by --map-axes"),
+        "spreads_natural": {name: float(spread[k]) for k, name in enumerate(fc.STATE_COLUMNS)},
+        "ranges": {name: list(r) for name, r in zip(chosen, ranges)},
+        "units": {name: PARAM_UNITS[name] for name in chosen},
+        "size": [size, size],
+        "fixed": {name: float(fixed[k]) for k, name in enumerate(fc.STATE_COLUMNS) if name not in chosen},
+        "phi0_folded": "phi0" in chosen,
+        "cells_inside_table": int((~clear).sum()),
+        "measures": measures.to_dict(),
+        "alpha_text": measures.uncertainty.fit.text(),
+        "f_1_pixel": float(measures.uncertainty.fraction[0]),
+        "drops": int(len(flights)),
+        "drops_in_map": int(inside.sum()),
+        "drops_box_entropy_mean": float(local.mean()) if local.size else math.nan,
+        "drops_on_boundary_boxes": float(np.mean(local > 0)) if local.size else math.nan,
+        "drops_side_as_map": float(agrees.mean()) if agrees.size else math.nan,
+        "release_sd_in_cells": {name: float(math.sqrt(block[k, k]) / cell[k]) for k, name in enumerate(chosen)},
+    }
+    picture = {"outcome": outcome, "x": xs, "y": ys, "x_label": f"{chosen[0]} ({PARAM_UNITS[chosen[0]]})",
+               "y_label": f"{chosen[1]} ({PARAM_UNITS[chosen[1]]})", "drops_x": states[:, columns[0]],
+               "drops_y": states[:, columns[1]], "drops_side": shown_side, "held_out": held, "cfg": model}
+    return summary, picture
+
+
+# --- the command -------------------------------------------------------------------------------
+
+
+def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.DEFAULT_MEMBERS, seed=0, rate=None, angle="as-is",
+                         workers=None, map_size=MAP_SIZE, map_axes=None, json_path=None, md_path=None, png_dir=None, log=None):
+    """Forecast the held-out drops of a track file from a fit; write JSON (Markdown and
+    pictures if asked). Every input and output is checked before the work. Returns the report."""
+    say = log or (lambda message: None)
+    started = time.perf_counter()
+    check_outputs(("--json", json_path, JSON), ("--md", md_path, MARKDOWN), ("--png", png_dir, FOLDER))
+    fc.check_from_bounce(from_bounce)
+    fc.check_members(members)
+    _check_map_size(map_size)
+    axes = parse_map_axes(map_axes) if isinstance(map_axes, str) else map_axes
+    source = read_fit_file(fit_path, cfg)
+    _check_angle(source, angle)
+    workers = fc.resolve_workers(workers)
+    trackset = load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle)
+    table = loop.table_height(trackset, cfg)
+    noise = loop.noise_floor(trackset, cfg, table)
+    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+    loaded = time.perf_counter()
+    intro = f"{len(trackset.tracks)} tracks; noise floor {noise['pose'] * 1000:.3f} mm; {source.parameter_note}"
+    run = fc.run_forecast(trackset, cfg, source, sigma=sigma, table=table, from_bounce=from_bounce, members=members, seed=seed,
+                          workers=workers, log=say, intro=intro)
+    scores = fc.score_run(run, cfg.die.sides, seed)
+    forecasted = time.perf_counter()
+    summary = picture = None
+    if map_size and run.release:
+        summary, picture = release_map(cfg, source, run, map_size, axes, workers)
+        say(f"release map {map_size} x {map_size} over {', '.join(summary['axes'])}: Sb = {summary['measures']['basin_entropy']['Sb']:.4f}")
+    done = time.perf_counter()
+    draws = min(fc.PARAM_DRAWS, members)
+    report = {
+        "command": "forecast",
+        "question": "the probability of each side of a tracked drop, from what was seen before it landed, scored against the side it rested on",
+        "data": {"path": str(data_path), "rate_hz": trackset.rate, "angle_reading": f"--angle {angle}: {trackset.angle_note}",
+                 "table_height_m": table, **run.counts},
+        "fit": {"path": str(fit_path), "kind": source.kind, "effects": list(source.spec(cfg).declared + source.effects), "params": source.params,
+                "parameter_uncertainty": source.parameter_note, "data_path": source.data_path,
+                "split": {"confirm_fraction": source.confirm_fraction, "seed": source.seed},
+                "same_data": source.data_path is None or Path(str(source.data_path)).name == Path(str(data_path)).name},
+        "noise": {k: noise[k] for k in ("sigma_x", "sigma_y", "sigma_phi", "pose")},
+        "ensemble": {"from_bounce": from_bounce, "members": draws * -(-members // draws), "param_draws": draws,
+                     "state_draws_per_param_draw": -(-members // draws), "smoothing": fc.SMOOTHING, "seed": seed,
+                     "bootstrap_resamples": fc.BOOTSTRAP, "method": METHOD},
+        "scores": scores,
+        "map": summary,
+        "timing_s": {"load": loaded - started, "forecast": forecasted - loaded, "map": done - forecasted, "total": done - started},
+    }
+    report = jsonable(report)
+    if png_dir:
+        report["pictures"] = [str(path) for path in draw_pictures(report, picture, Path(png_dir), cfg.die.sides)]
+    if json_path:
+        write_json(json_path, report)
+    if md_path:
+        replace_atomically(md_path, lambda file: file.write(fc.markdown(report).encode()))
+    return report
+
+
+METHOD = [
+    "state: the frames of flight K alone, fitted by the model's flight (the kernel at the fitted parameters); covariance from the "
+    "Gauss-Newton normal matrix with the tracking noise, times the flight's reduced chi-square when above 1",
+    "parameters: the fit's bootstrap draws (or Gaussians from ci95 when the JSON has none: see fit.parameter_uncertainty)",
+    "members: parameter draws x state draws per track, starts inside the table drawn again, each rolled to rest by the sweep kernel",
+    "probabilities: (members on a side + 0.5) / (members + n 0.5)",
+    "scored on the held-out (confirmation) tracks of the fit's split that end at rest; intervals: 95 % bootstrap over tracks",
+    "not in the ensemble: the model's own error, other optima of the fit, state-parameter correlations, non-white tracking noise",
+]
+
+
+def draw_pictures(report, picture, folder, sides):
+    """reliability.png, skill_by_bounce.png and (with a map) release_map.png in ``folder``."""
+    from dice_sweep.plotting import plot_release_map, plot_reliability, plot_skill_by_bounce
+
+    folder.mkdir(parents=True, exist_ok=True)
+    scores = report["scores"]
+    k = scores["from_bounce"]
+    curves = [("ensemble", scores["reliability"])]
+    if "recalibrated" in scores:
+        curves.append(("recalibrated", scores["recalibrated"]["reliability"]))
+    written = [plot_reliability(curves, folder / PICTURES[0], title=f"held-out tracks, forecast from flight {k} ({scores['n_tracks']} tracks)"),
+               plot_skill_by_bounce(scores["by_bounce"], sides, folder / PICTURES[1], title="held-out tracks: skill against the flight forecast from")]
+    if picture is not None:
+        written.append(plot_release_map(picture, picture["cfg"], folder / PICTURES[2]))
+    return written

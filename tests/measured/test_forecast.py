@@ -1,0 +1,394 @@
+"""Side forecasts of tracked drops (issue 18): the scores against hand-computed values; the
+forecast's calibration and skill on drops from the independent generator (a separate
+integrator: the kernel does not make the data), where the truth is known; and `dice-sweep
+forecast` end to end, bad input included."""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dice_sweep.config import parse_config
+from dice_sweep.geometry import side_below
+from dice_sweep.measured import forecast as fc
+from dice_sweep.measured.tracks import load_tracks
+from tests.helpers import run_cli as invoke
+from tests.measured.cases import DECLARED_RIGID, TRUTH
+from tests.measured.independent import Truth, simulate_drops, simulate_path, write_csv
+
+ROOT = Path(__file__).resolve().parents[2]
+SQUARE = ROOT / "configs" / "square_drops.toml"
+REAL = ROOT.parent / "shared" / "data" / "mcube_square_drops" / "drops.csv.gz"
+
+
+# --- scores against hand-computed values ---------------------------------------------------------
+
+
+def test_probabilities_add_half_a_member_to_every_side():
+    assert np.allclose(fc.probabilities([[3, 1, 0, 0]]), [[3.5 / 6, 1.5 / 6, 0.5 / 6, 0.5 / 6]])
+
+
+def test_log_and_brier_scores_by_hand():
+    prob = np.array([[0.5, 0.25, 0.125, 0.125], [0.25, 0.25, 0.25, 0.25]])
+    assert np.allclose(fc.log_scores(prob, [1, 3]), [math.log(0.25), math.log(0.25)])
+    # (0.5 - 1)^2 + 0.25^2 + 2 x 0.125^2 = 0.34375; uniform: 0.75^2 + 3 x 0.25^2 = 0.75 = (n - 1) / n
+    assert np.allclose(fc.brier_scores(prob, [0, 2]), [0.34375, 0.75])
+    assert fc.brier_scores([[1.0, 0.0, 0.0, 0.0]], [1])[0] == 2.0  # sure and wrong
+
+
+def test_deterministic_forecast_is_an_ensemble_of_identical_members():
+    prob = fc.deterministic_probabilities([2, -1], 4, members=1000)
+    assert np.allclose(prob[0], [0.5 / 1002, 0.5 / 1002, 1000.5 / 1002, 0.5 / 1002])
+    assert np.allclose(prob[1], 0.25)  # no side: uniform
+
+
+def test_reliability_bins_by_hand():
+    # pairs (p, happened): (0.9, 1), (0.1, 0), (0.2, 1), (0.8, 0)
+    bins = fc.reliability([[0.9, 0.1], [0.2, 0.8]], [0, 0])
+    assert [b["pairs"] for b in bins] == [0, 1, 1, 0, 0, 0, 0, 0, 1, 1]
+    assert bins[9]["observed_frequency"] == 1.0 and bins[8]["observed_frequency"] == 0.0
+    assert bins[2]["mean_predicted"] == pytest.approx(0.2)
+    # Wilson interval of 1 in 1: ((1 + z^2/2) -+ z sqrt(z^2/4)) / (1 + z^2)
+    z = fc.Z95
+    assert bins[9]["ci95"] == pytest.approx([(1 + z * z / 2 - z * z / 2) / (1 + z * z), 1.0])
+    assert bins[9]["calibrated_sd"] == pytest.approx(math.sqrt(0.9 * 0.1))
+
+
+def test_calibration_test_by_hand():
+    # two tracks of two sides: (0.8, 0.2) with side 0 and (0.5, 0.5) with side 1
+    prob = np.array([[0.8, 0.2], [0.5, 0.5]])
+    out = fc.calibration_test(prob, [0, 1])
+    e1 = 0.8 * math.log(0.8) + 0.2 * math.log(0.2)
+    v1 = 0.8 * math.log(0.8) ** 2 + 0.2 * math.log(0.2) ** 2 - e1**2
+    expected = (math.log(0.8) - e1 + 0.0) / math.sqrt(v1 + 0.0)
+    assert out["expected_log_score"] == pytest.approx((e1 + math.log(0.5)) / 2)
+    assert out["log_score_z"] == pytest.approx(expected)
+    # Brier: expectation 1 - sum p^2, variance 4 (sum p^3 - (sum p^2)^2)
+    b_got = [(0.8 - 1) ** 2 + 0.2**2, 0.5]
+    b_exp = [1 - 0.68, 1 - 0.5]
+    b_var = [4 * (0.512 + 0.008 - 0.68**2), 0.0]
+    assert out["expected_brier"] == pytest.approx(np.mean(b_exp))
+    assert out["brier_z"] == pytest.approx(-(sum(b_got) - sum(b_exp)) / math.sqrt(sum(b_var)))
+
+
+def test_blend_weight_by_hand():
+    # a sure forecast right on half the tracks, n = 4: the mean log score
+    # 0.5 ln(1 - 3w/4) + 0.5 ln(w/4) is largest at w = 2/3
+    prob = np.tile([1.0, 0.0, 0.0, 0.0], (10, 1))
+    observed = [0] * 5 + [1] * 5
+    w = fc.fit_blend(prob, observed)
+    assert w == pytest.approx(2 / 3, abs=1e-4)
+    assert np.allclose(fc.blend(prob[:1], w), [[0.5, 1 / 6, 1 / 6, 1 / 6]], atol=1e-4)
+
+
+def test_score_bounce_intervals_and_skills():
+    rng = np.random.default_rng(0)
+    tracks, n = 60, 4
+    observed = rng.integers(0, n, tracks)
+    counts = np.zeros((tracks, n), int)
+    counts[np.arange(tracks), observed] = 900  # a good forecast
+    counts += 25
+    flight = fc.FlightState(1, np.zeros(6), np.eye(6), 1.0, 10, 0.0)
+    bounce = fc.BounceForecast(0, np.arange(tracks), observed, counts, np.zeros(tracks, int), np.zeros(tracks, int), observed.copy(),
+                               [flight] * tracks, 0)
+    s = fc.score_bounce(bounce, n, rng)
+    expected = math.log((925.5) / (1000 + 2))
+    assert s["log_score"]["value"] == pytest.approx(expected)
+    assert s["log_score"]["ci95"][0] <= s["log_score"]["value"] <= s["log_score"]["ci95"][1]
+    assert s["log_score_uniform"]["value"] == pytest.approx(-math.log(4))
+    assert s["brier_uniform"]["value"] == pytest.approx(0.75)
+    assert s["log_skill"]["value"] == pytest.approx(expected + math.log(4))
+    assert s["share_correct_deterministic"]["value"] == 1.0 and s["share_correct_most_likely"]["value"] == 1.0
+    assert len(s["tracks"]) == tracks and s["tracks"][0]["probabilities"][observed[0]] == pytest.approx(925.5 / 1002)
+
+
+def test_folding_the_angle_renames_the_sides():
+    phi = np.random.default_rng(1).uniform(-10, 10, 200)
+    folded, turns = fc.fold_phase(phi, 4, 0.3)
+    assert np.all(np.abs(folded - 0.3) <= math.pi / 4 + 1e-12)
+    assert np.array_equal(side_below(4, folded), (side_below(4, phi) + turns) % 4)
+
+
+def test_map_axes_are_the_initial_values_that_vary_most():
+    cfg = parse_config(DECLARED_RIGID)
+    rng = np.random.default_rng(2)
+    states = np.column_stack([rng.normal(0, 0.1, 300), rng.normal(0.15, 1e-3, 300), rng.uniform(-3, 3, 300),
+                              rng.normal(-0.5, 0.01, 300), rng.normal(-2, 0.01, 300), rng.normal(0, 8, 300)])
+    assert fc.choose_map_axes(states, cfg) == ("omega0", "phi0")  # x0 changes nothing without walls
+    low, high = fc.map_range(states[:, 2], "phi0", cfg)
+    assert high - low == pytest.approx(math.pi / 2)
+
+
+# --- calibration and skill on independent synthetic drops ----------------------------------------
+
+RIGID = parse_config(DECLARED_RIGID)
+FRICTIONLESS = parse_config(DECLARED_RIGID.replace("friction = 0.5\n", ""))
+
+
+def true_side(truth, state0, duration):
+    """The side the independent generator's die rests on: once its energy
+    (v^2/2 + I omega^2/2 + g y, per unit mass) is below g R no corner can pass under the centre
+    again, and the side below the centre is final (docs/physics.md, outcome rule); None when
+    the generator stopped before that (it does not simulate sustained contact)."""
+    path = simulate_path(truth, state0, duration, min_bounce_speed=1e-4)
+    x, y, phi, vx, vy, omega = path.centre_state(path.t_end)
+    n, radius = truth.sides, truth.circumradius
+    inertia = radius**2 * (math.sin(math.pi / n) ** 2 / 6 + math.cos(math.pi / n) ** 2 / 2)
+    if 0.5 * (vx * vx + vy * vy) + 0.5 * inertia * omega * omega + truth.g * y >= truth.g * radius:
+        return None
+    return int(math.floor(((-math.pi / 2 - phi) % (2 * math.pi)) / (2 * math.pi / n))) % n
+
+
+def synthetic(tmp_path_factory, name, truth, count, seed, noise, rate, **ranges):
+    """Tracks of ``count`` drops from the independent generator and their true resting sides."""
+    drops = simulate_drops(truth, count, seed, rate=rate, duration=3.0, noise=noise, **ranges)
+    path = tmp_path_factory.mktemp(name) / "drops.csv"
+    write_csv(path, drops)
+    tracks = load_tracks(path, sides=truth.sides, circumradius=truth.circumradius)
+    return tracks, {d["traj"]: true_side(truth, d["state0"], 3.0) for d in drops}
+
+
+def known(params):
+    """A fit that knows the truth: its parameters, no parameter uncertainty."""
+    return fc.FitSource("truth", "fit", (), params, tuple(params), None, np.zeros(len(params)), "the truth", 0.3, 0, None, None)
+
+
+def forecast(tracks, cfg, params, noise, observed, members=500):
+    sigma = (noise[0], noise[0], noise[1])
+    out, _, _ = fc.forecast_tracks(tracks.tracks, cfg, known(params), sigma=sigma, bounces=(0,), members=members, workers=2,
+                                   observed=observed)
+    return fc.score_bounce(out[0], 4, np.random.default_rng(0))
+
+
+NOISY = (2e-3, 4e-2)  # a poor tracker: the release state is uncertain enough for probabilities between 0 and 1
+HIGH = dict(height=(0.3, 0.4), vy=(-1.0, 0.0), spin=(-30.0, 30.0))
+
+
+@pytest.fixture(scope="module")
+def spread_drops(tmp_path_factory):
+    return synthetic(tmp_path_factory, "spread", Truth(**TRUTH), 200, 1, NOISY, 250.0, **HIGH)
+
+
+def test_forecast_is_calibrated_within_sampling_error(spread_drops):
+    tracks, observed = spread_drops
+    assert sum(side is not None for side in observed.values()) >= 140
+    s = forecast(tracks, RIGID, dict(TRUTH_PARAMS), NOISY, observed)
+    assert s["n_tracks"] >= 140
+    assert 0.3 < s["mean_entropy"] < 1.0  # neither sure nor uniform: the test has power
+    assert abs(s["calibration"]["log_score_z"]) < 3 and abs(s["calibration"]["brier_z"]) < 3
+    for b in s["reliability"]:  # each well-filled bin within 3 binomial standard deviations
+        if b["pairs"] >= 30:
+            assert abs(b["observed_frequency"] - b["mean_predicted"]) < 3 * b["calibrated_sd"] + 0.02, b
+    assert s["log_skill"]["ci95"][0] > 0.5
+
+
+def test_a_wrong_model_fails_the_calibration_test(spread_drops):
+    tracks, observed = spread_drops
+    s = forecast(tracks, RIGID, {**TRUTH_PARAMS, "beta_normal": 0.3}, NOISY, observed)
+    assert s["calibration"]["log_score_z"] < -5  # overconfident: sure of sides that did not happen
+    assert s["log_score"]["ci95"][1] < s["calibration"]["expected_log_score"] - 1.0
+
+
+TRUTH_PARAMS = {"beta_normal": TRUTH["beta_normal"], "beta_tangential": TRUTH["beta_tangential"], "friction": TRUTH["friction"]}
+
+
+def test_skill_is_high_where_the_map_is_smooth(tmp_path_factory):
+    """Low drops with little spin: the die lands and tips to the side below it."""
+    tracks, observed = synthetic(tmp_path_factory, "smooth", Truth(**TRUTH), 100, 2, (2e-4, 4e-3), 500.0,
+                                 height=(0.06, 0.07), vy=(-0.3, 0.0), vx=(-0.1, 0.1), spin=(-2.0, 2.0))
+    s = forecast(tracks, RIGID, dict(TRUTH_PARAMS), (2e-4, 4e-3), observed)
+    assert s["n_tracks"] >= 60
+    assert s["log_skill"]["ci95"][0] > 1.0  # of at most ln 4 = 1.386
+    assert s["share_correct_most_likely"]["value"] > 0.95
+
+
+def test_skill_is_near_zero_where_the_map_is_fractal(tmp_path_factory):
+    """High, fast-spinning drops of a lively die: a state known to micrometres still gives 1/n."""
+    truth = Truth(contact="rigid", beta_normal=0.8, beta_tangential=0.0, friction=math.inf)
+    tracks, observed = synthetic(tmp_path_factory, "fractal", truth, 90, 3, (2e-4, 4e-3), 500.0, **HIGH)
+    s = forecast(tracks, FRICTIONLESS, {"beta_normal": 0.8, "beta_tangential": 0.0}, (2e-4, 4e-3), observed)
+    assert s["n_tracks"] >= 70
+    assert s["mean_entropy"] > 0.97 * math.log(4)
+    assert abs(s["log_skill"]["value"]) < 0.06 and s["log_skill"]["ci95"][1] < 0.1
+    assert abs(s["brier_skill"]["value"]) < 0.05
+
+
+# --- the command ------------------------------------------------------------------------------------
+
+PAPER = {"beta_normal": 0.2, "beta_tangential": -0.35}  # configs/square_drops.toml's, which simulate-drops uses
+
+
+def fit_json(path, draws=True, **changes):
+    """A fit JSON as dice-sweep fit writes it, for the square of configs/square_drops.toml."""
+    rng = np.random.default_rng(0)
+    data = {"effects": [], "params": {k: {"value": v, "ci95": [v - 0.01, v + 0.01], "unit": "1", "at_bound": False} for k, v in PAPER.items()},
+            "angle_reading": "as-is: the file's angle is used unchanged (sign +1, offset 0)",
+            "die": {"sides": 4, "circumradius": 0.042426406871192854}, "split": {"confirm_fraction": 0.3, "seed": 0}}
+    if draws:
+        data["bootstrap_draws"] = {"names": list(PAPER), "values": (np.array(list(PAPER.values())) + 0.005 * rng.normal(size=(200, 2))).tolist()}
+    data.update(changes)
+    path.write_text(json.dumps(data))
+    return path
+
+
+@pytest.fixture(scope="module")
+def drops(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("forecast_cli")
+    data = folder / "drops.csv"
+    result = invoke("simulate-drops", SQUARE, "-o", data, "--tracks", 30, "--seed", 4)
+    assert result.exit_code == 0, result.output
+    return data, fit_json(folder / "fit.json")
+
+
+def test_forecast_command_writes_the_contract(drops, tmp_path):
+    data, fit = drops
+    out = tmp_path / "f.json"
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 32, "--workers", 2, "--json", out,
+                    "--md", tmp_path / "f.md", "--png", tmp_path / "png", "--quiet")
+    assert result.exit_code == 0, result.output
+    assert "held-out tracks: log score" in result.stdout
+    report = json.loads(out.read_text())
+    scores = report["scores"]
+    for key in ("log_score", "log_score_uniform", "brier", "brier_uniform"):
+        low, high = scores[key]["ci95"]
+        assert low <= scores[key]["value"] <= high, key
+    assert scores["log_score_uniform"]["value"] == pytest.approx(-math.log(4))
+    assert scores["from_bounce"] == 0 and scores["by_bounce"][0]["from_bounce"] == 0
+    assert [b["from_bounce"] for b in scores["by_bounce"]] == sorted(b["from_bounce"] for b in scores["by_bounce"])
+    for block in scores["by_bounce"]:
+        assert {"log_score", "log_score_uniform", "brier", "brier_uniform", "tracks"} <= set(block)
+    tracks = scores["tracks"]
+    assert len(tracks) == scores["n_tracks"] > 0
+    assert all(abs(sum(t["probabilities"]) - 1) < 1e-9 and sum(t["counts"]) >= 1000 for t in tracks)
+    assert report["ensemble"]["members"] >= 1000 and "bootstrap draws" in report["fit"]["parameter_uncertainty"]
+    assert report["map"]["size"] == [32, 32] and len(report["map"]["axes"]) == 2
+    assert "recalibrated" in scores
+    assert "## By forecast point" in (tmp_path / "f.md").read_text()
+    assert sorted(p.name for p in (tmp_path / "png").iterdir()) == ["release_map.png", "reliability.png", "skill_by_bounce.png"]
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_the_json_of_fit_feeds_the_forecast(drops, tmp_path):
+    """`fit --json` writes the bootstrap draws, the die and the split the forecast reads."""
+    data, _ = drops
+    fit = tmp_path / "fit.json"
+    result = invoke("fit", data, "--config", SQUARE, "--json", fit)
+    assert result.exit_code == 0, result.output
+    written = json.loads(fit.read_text())
+    assert written["die"]["sides"] == 4 and written["die"]["circumradius"] == pytest.approx(0.06 / math.sqrt(2))
+    assert written["split"] == {"confirm_fraction": 0.3, "seed": 0} and written["data"]["path"] == str(data)
+    draws = np.array(written["bootstrap_draws"]["values"])
+    assert written["bootstrap_draws"]["names"] == list(written["params"]) and draws.shape == (1000, len(written["params"]))
+    for k, name in enumerate(written["params"]):  # the draws are the ones the intervals come from
+        assert np.quantile(draws[:, k], [0.025, 0.975]) == pytest.approx(written["params"][name]["ci95"])
+    out = tmp_path / "f.json"
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 16, "--json", out, "--quiet")
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    assert report["fit"]["kind"] == "fit" and report["fit"]["same_data"]
+    assert report["fit"]["parameter_uncertainty"].startswith("1000 bootstrap draws")
+
+
+def test_forecast_without_bootstrap_draws_says_so(drops, tmp_path):
+    data, _ = drops
+    fit = fit_json(tmp_path / "plain.json", draws=False)
+    out = tmp_path / "f.json"
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--from-bounce", 1, "--members", 1000, "--map-size", 0,
+                    "--json", out, "--quiet")
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    assert "ci95" in report["fit"]["parameter_uncertainty"] and report["map"] is None
+    assert report["scores"]["from_bounce"] == 1
+
+
+def one_line_error(result, *fragments):
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+    return lines[0]
+
+
+BAD = [
+    (["--from-bounce", "-1"], ("--from-bounce: -1", "[0, 5]")),
+    (["--from-bounce", "9"], ("--from-bounce: 9", "[0, 5]")),
+    (["--from-bounce", "two"], ("--from-bounce", "whole number")),
+    (["--members", "100"], ("--members: 100", "[1000, 1000000]")),
+    (["--map-size", "5"], ("--map-size: 5", "[16, 2048]")),
+    (["--map-axes", "phi0,spin"], ("--map-axes", "phi0,omega0")),
+    (["--angle", "auto"], ("--angle: auto", "as-is")),
+]
+
+
+@pytest.mark.parametrize(("options", "fragments"), BAD, ids=[" ".join(o) for o, _ in BAD])
+def test_bad_options_are_one_line_errors_before_the_work(drops, tmp_path, options, fragments):
+    data, fit = drops
+    one_line_error(invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json", *options), *fragments)
+    assert list(tmp_path.iterdir()) == []
+
+
+FITS = {
+    "not json": ("{nope", "not JSON"),
+    "not a fit": (json.dumps({"verdict": "explained"}), "no key 'params'"),
+    "another die": (None, "a fit of a die with n = 5"),
+    "another model": (None, "a fit of another model"),
+    "bad draws": (None, "bootstrap_draws"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(FITS))
+def test_bad_fit_json_is_a_one_line_error(drops, tmp_path, case):
+    data, _ = drops
+    text, fragment = FITS[case]
+    fit = tmp_path / "fit.json"
+    if text is not None:
+        fit.write_text(text)
+    elif case == "another die":
+        fit_json(fit, die={"sides": 5, "circumradius": 0.04})
+    elif case == "another model":
+        fit_json(fit, effects=["coulomb_friction"])
+    else:
+        fit_json(fit, bootstrap_draws={"names": ["beta_normal"], "values": [[0.2]]})
+    one_line_error(invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json"), "--fit", str(fit), fragment)
+    assert not (tmp_path / "f.json").exists()
+
+
+def test_a_missing_fit_file_and_a_bounce_no_track_has(drops, tmp_path):
+    data, fit = drops
+    one_line_error(invoke("forecast", data, "--config", SQUARE, "--fit", tmp_path / "none.json", "--json", tmp_path / "f.json"),
+                   "--fit", "cannot be read")
+    one_line_error(invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--from-bounce", 5, "--json", tmp_path / "f.json"),
+                   "--from-bounce: 5", "no held-out track", "allowed: 0 to")
+    one_line_error(invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.txt"), "--json", "f.txt", ".json")
+
+
+def test_a_diagnose_report_is_a_fit_too():
+    cfg = parse_config(DECLARED_RIGID)
+    params = {name: {"value": value, "ci95": [value - 0.01, value + 0.01]} for name, value in TRUTH_PARAMS.items()}
+    report = {"after": {"params": params, "effects": ["corner_impulse", "coulomb_friction"]}, "effects_added": [],
+              "data": {"path": "/x/drops.csv"}, "split": {"confirm_fraction": 0.25, "seed": 3}}
+    source = fc.parse_fit(report, "r.json", cfg, 0.3, 0)
+    assert source.kind == "diagnose" and source.params == TRUTH_PARAMS and source.draws is None
+    assert (source.confirm_fraction, source.seed, source.data_path) == (0.25, 3, "/x/drops.csv")
+    draws = fc.sample_params(source, cfg, 2000, np.random.default_rng(0))
+    sd = np.std([d["beta_normal"] for d in draws])
+    assert sd == pytest.approx(0.01 / fc.Z95, rel=0.1)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not REAL.exists(), reason="../shared/data/mcube_square_drops is not beside this checkout")
+def test_real_drops_from_the_release(tmp_path):
+    """The 500 real drops: fit, then forecast from the release (a few minutes)."""
+    fit = tmp_path / "fit.json"
+    result = invoke("fit", REAL, "--config", SQUARE, "--angle", "auto", "--effects", "corner_impulse,coulomb_friction", "--json", fit)
+    assert result.exit_code == 0, result.output
+    out = tmp_path / "f.json"
+    result = invoke("forecast", REAL, "--config", SQUARE, "--angle", "auto", "--fit", fit, "--map-size", 64, "--json", out, "--quiet")
+    assert result.exit_code == 0, result.output
+    scores = json.loads(out.read_text())["scores"]
+    assert scores["n_tracks"] > 140
+    assert scores["share_correct_deterministic"]["ci95"][0] > 0.25  # better than chance from the release ...
+    assert scores["by_bounce"][-1]["log_skill"]["ci95"][0] > 0.5  # ... and nearly sure a few bounces later
