@@ -422,13 +422,18 @@ def _fresh_states(model, values, states):
     return np.where(better[:, None], fresh, states), int(better.sum())
 
 
-def fit_spec(cfg, spec, segments, start=None, states=None, fixed=False, max_iterations=MAX_ITERATIONS):
+def fit_spec(cfg, spec, segments, start=None, states=None, fixed=False, max_iterations=MAX_ITERATIONS, refresh=False):
     """Fit a spec's parameters (unless ``fixed``) and every segment's state.
 
     ``start`` (name -> value) overrides the config's start values; ``states`` the ballistic
     guesses. With ``fixed`` only the states are fitted (held-out tracks). A fit from the
     guesses refits each state from its guess at the fitted parameters once converged, and goes
-    on (:func:`_fresh_states`, at most FRESH_PASSES times).
+    on (:func:`_fresh_states`, at most FRESH_PASSES times). With ``refresh`` given states are
+    first compared, segment by segment, with a fit from the guesses at the start values: a
+    candidate effect that changes how dice land (flat_landing) puts the flights after a
+    landing in other basins than the current model's states, and a candidate fit from those
+    stopped at 50 times the cost of the truth
+    (tests/measured/test_diagnose.py::test_flat_landing_contact_time_is_found).
     """
     model = ShootingModel(cfg, spec, segments)
     values = start_values(cfg, spec)
@@ -437,6 +442,8 @@ def fit_spec(cfg, spec, segments, start=None, states=None, fixed=False, max_iter
     from_guesses = states is None
     states = segments.guess.copy() if from_guesses else states.copy()
     free = () if fixed else tuple(spec.param_names())
+    if refresh and not from_guesses:
+        states, _ = _fresh_states(model, values, states)
     values, states, cost, iterations, converged = _fit(model, values, states, free, max_iterations)
     # states fitted from their guesses while the parameters were far off: give each segment a
     # fresh start at the fitted parameters (a fit from given states, a candidate's, moves little)

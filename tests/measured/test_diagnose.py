@@ -148,14 +148,12 @@ FLAT_LANDING_STARTS = {"phi": (math.pi / 4 - 0.03, math.pi / 4 + 0.03), "spin": 
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="the loop names nothing (verdict unexplained, 38.5 x the noise floor): the flat_landing candidate's "
-                          "fit from its start values (1e-4, 3e-4, 9e-4 s) ends at contact_time 2.24e-4 s [0, 1e-3] for 8e-4, "
-                          "z = 1.43 below the threshold 2.49, with friction 0.344 taking up part of the effect. With the truth "
-                          "declared the same fit gives 7.99e-4 s [7.91e-4, 8.08e-4] at 0.98 x the floor "
-                          "(test_flat_landing_truth_declared_is_explained): the candidate's fit, started from the model without "
-                          "the effect, stops in a local minimum; not a disagreement between the generator and the kernel. "
-                          "With the earlier start values (3e-5, 1e-4, 3e-4 s) it stopped at 9.76e-5 s and the loop named "
-                          "angle_offset (0.0296 rad) instead")
+@pytest.mark.xfail(reason="the loop names angle_offset (0.0296 [0.0240, 0.0351] rad, z = 5.76) instead: the flat_landing "
+                          "candidate, its flights refreshed from their guesses, removes more of the excess (79 %, z = 6.26) but "
+                          "ends at the bound 1e-3 s for 8e-4, so it is not added. Fitted from fresh states alone the same "
+                          "candidate reached 8.0e-4 s from one start and 9.65e-4 s from another at costs 0.009 and 0.0013: the "
+                          "cost is rough in contact_time. With the truth declared the fit gives 7.99e-4 s [7.91e-4, 8.08e-4] "
+                          "at 0.98 x the floor (test_flat_landing_truth_declared_is_explained): the search, not the physics")
 def test_flat_landing_contact_time_is_found(tmp_path):
     report = run_loop(tmp_path, FLAT_LANDING_TRUTH, starts=FLAT_LANDING_STARTS)
     assert report["effects_added"][:1] == ["flat_landing"], report["rounds"]
@@ -203,9 +201,9 @@ def test_four_times_the_noise(four_times_the_noise):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="known bias at 4x the noise: drag 0.774 [0.730, 0.799] for 0.8 and friction 0.295 for 0.3 on this set, "
-                          "less than one interval half-width low; without noise the fit finds both exactly (test_fit.py), and the "
-                          "estimate moves with the robust scale (0.757 at 0.2 R, 0.781 at 0.01 R): a bias of the nonlinear fit "
-                          "at this noise, not of the model")
+# at 4x the noise this set once gave drag 0.774 [0.730, 0.799] and friction 0.295: a local optimum,
+# left since contact candidates start their flights from fresh states (diagnose.fit_candidate) and
+# so find the current model's better optimum; now 0.800 [0.785, 0.817] and 0.2996 [0.2979, 0.3010]
 def test_four_times_the_noise_interval_covers_the_drag(four_times_the_noise):
-    assert covers(four_times_the_noise, "air_drag", 0.8)
+    assert covers(four_times_the_noise, "air_drag", 0.8), four_times_the_noise["params"]["air_drag"]
+    assert covers(four_times_the_noise, "friction", 0.3), four_times_the_noise["params"]["friction"]
