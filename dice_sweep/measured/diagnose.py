@@ -335,6 +335,14 @@ def _null_excluded(name, interval, cfg):
     return not (interval[0] <= null <= interval[1])
 
 
+def _effect_away_from_null(effect_name, params, cfg):
+    """Whether an effect's 95 % intervals (``params`` as :func:`_describe_params` gives them)
+    put it away from its null: for a vector effect (com_offset) one component is enough; an
+    effect without parameters (a switch, corner_impulse) always is."""
+    own = [p.name for p in registry.effect(effect_name).params]
+    return not own or any(_null_excluded(n, params[n]["ci95"], cfg) for n in own)
+
+
 TOP_TRACK_SHARE = 0.5  # a parameter whose information comes this much from one track is flagged
 
 
@@ -576,12 +584,8 @@ def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, rng
     _, cand_red, e_cand = _held_out(cfg, cand, segments, fold)
     draws = bootstrap_params(cand_red, segments, list(cand.free), cand.params, cfg, rng, bootstrap)
     params = _describe_params(cand, draws, cfg, cand_red)
-    excluded, new = True, []
-    for name in names:
-        own = [p.name for p in registry.effect(name).params]
-        new += own
-        if own:  # a vector effect (com_offset): one component away from null is enough
-            excluded = excluded and any(_null_excluded(n, params[n]["ci95"], cfg) for n in own)
+    excluded = all(_effect_away_from_null(name, params, cfg) for name in names)
+    new = [p.name for name in names for p in registry.effect(name).params]
     return {"effect": "+".join(names), "effects": list(names), "fit": cand, "red": cand_red, "errors": e_cand,
             "z": signed_rank_z(e_current**2 - e_cand**2), "params": params, "null_excluded": bool(excluded),
             "excess_share": excess_share(e_current, e_cand, floor), "test_error": shooting.rms(e_cand),
@@ -762,12 +766,31 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     e_after, residual_after = _confirm(cfg, current, seg_confirm)
     draws_before = bootstrap_params(baseline_red, seg_select, list(baseline.free), baseline.params, cfg, rng, bootstrap)
     draws_after = bootstrap_params(red, seg_select, list(current.free), current.params, cfg, rng, bootstrap)
+    # an effect is named by the final model's intervals, not by those it had when it was added: a
+    # later round's refit moved one back to its null (angle_offset 0.0024 [-0.0006, 0.0053] rad,
+    # added at 0.03 on flat-landing drops: tests/measured/test_diagnose.py); it is taken out and
+    # the rest refitted
+    removed = []
+    while True:
+        described = _describe_params(current, draws_after, cfg, red)
+        null = [name for name in current.spec.effects if not _effect_away_from_null(name, described, cfg)]
+        if not null:
+            break
+        removed += null
+        say(f"removed {', '.join(null)}: the final model's 95 % interval holds its null value")
+        spec = shooting.ModelSpec(tuple(e for e in current.spec.effects if e not in null), current.spec.declared)
+        current = shooting.fit_spec(cfg, spec, seg_select, start=current.params, states=current.states, max_iterations=POLISH_ITERATIONS)
+        lin, red, e_current = _held_out(cfg, current, seg_select, fold)
+        e_after, residual_after = _confirm(cfg, current, seg_confirm)
+        draws_after = bootstrap_params(red, seg_select, list(current.free), current.params, cfg, rng, bootstrap)
+    for step in chain:
+        step["removed"] = [name for name in step["effects"] if name in removed]
     after_error = shooting.rms(e_after)
     median_before, median_before_ci = median_interval(e_before, rng, bootstrap)
     median_after, median_after_ci = median_interval(e_after, rng, bootstrap)
     if median_after <= EXPLAINED_FACTOR * floor:
         verdict = "explained"
-    elif chain:
+    elif current.spec.effects:
         verdict = "improved"
     else:
         verdict = "unexplained"
@@ -778,9 +801,11 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
                          "effects added, still above; unexplained: nothing added, above"),
         "signatures": signatures,
         "signatures_remaining": _remaining(signatures, floor) if verdict != "explained" else [],
-        "effects_added": [name for step in chain for name in step["effects"]],
+        "effects_added": [name for step in chain for name in step["effects"] if name not in removed],
+        "effects_removed": [{"effect": name, "reason": "added in a round, but the final model's 95 % interval holds its null value"}
+                            for name in removed],
         "equivalent_effects": {name: list(registry.effect(name).equivalent) for step in chain for name in step["effects"]
-                               if registry.effect(name).equivalent},
+                               if registry.effect(name).equivalent and name not in removed},
         "angle_reading": angle_reading or trackset.angle_note,
         "noise_floor": floor,
         "noise": noise,

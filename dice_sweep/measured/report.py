@@ -134,6 +134,7 @@ def markdown_report(report):
     floor = report["noise_floor"]
     lines = ["# Diagnosis of tracked drops", "",
              f"**Verdict: {report['verdict']}.** Effects added: {', '.join(report['effects_added']) or 'none'}."
+             + "".join(f" Removed at the end: {r['effect']} ({r['reason']})." for r in report.get("effects_removed", []))
              + "".join(f" No motion can tell {name} from {', '.join(others)} (the same data, another parameter)."
                        for name, others in report.get("equivalent_effects", {}).items()), "",
              f"Metric: {report['metric']}.", "", f"Selection: {report['selection']}.", ""]

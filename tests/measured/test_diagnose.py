@@ -11,8 +11,9 @@ import math
 
 import pytest
 
+from dice_sweep import effects as registry
 from dice_sweep.config import parse_config
-from dice_sweep.measured.diagnose import diagnose
+from dice_sweep.measured.diagnose import _effect_away_from_null, _null_excluded, diagnose
 from dice_sweep.measured.tracks import load_tracks
 from tests.measured.cases import DECLARED_PAPER, DECLARED_RIGID, NOISE, RADIUS, TRUTH
 from tests.measured.independent import Truth, simulate_drops, write_csv
@@ -32,7 +33,17 @@ def run_loop(tmp_path, truth, declared=DECLARED_RIGID, *, seed=1, noise=NOISE, t
     trackset = load_tracks(path, sides=4, circumradius=RADIUS)
     report = diagnose(trackset, cfg, seed=split_seed, null_simulations=100, bootstrap=400, **options)
     report.pop("_fits")
+    assert_named_effects_are_away_from_null(report, cfg)
     return report
+
+
+def assert_named_effects_are_away_from_null(report, cfg):
+    """Every run: an effect the report names has a final 95 % interval that excludes its null
+    (one component for a vector effect), and a removed one is not named."""
+    for name in report["effects_added"]:
+        own = [p.name for p in registry.effect(name).params]
+        assert not own or any(_null_excluded(n, report["params"][n]["ci95"], cfg) for n in own), (name, report["params"])
+    assert not {r["effect"] for r in report["effects_removed"]} & set(report["effects_added"])
 
 
 def covers(report, name, value):
@@ -163,6 +174,30 @@ def test_flat_landing_contact_time_is_found(tmp_path):
 
 FLAT_LANDING_DECLARED = DECLARED_RIGID.replace("beta_normal = 0.3", "beta_normal = 0.4").replace("friction = 0.5", "friction = 0.3") + (
     "[effects]\ncontact_time = 8e-4\n")
+
+
+@pytest.mark.slow
+def test_an_effect_back_at_its_null_is_not_named(tmp_path):
+    # flat landings with a contact time of 5e-4 s: angle_offset is added in round 1 at about
+    # 0.03 rad (z = 4.35; the flat_landing candidate removes more but its interval holds 0), and
+    # the later rounds' refits bring it back to 0.0024 [-0.0006, 0.0053] rad. Before the final
+    # check the report named it; flat_landing itself is not found here (the xfail above)
+    report = run_loop(tmp_path, dict(TRUTH, contact_time=5e-4), starts=FLAT_LANDING_STARTS)
+    assert [r["effect"] for r in report["effects_removed"]] == ["angle_offset"]
+    assert "angle_offset" not in report["effects_added"] and "angle_offset" not in report["params"]
+    assert report["chain"][0]["removed"] == ["angle_offset"]
+
+
+def test_an_effect_is_away_from_its_null_by_its_intervals():
+    cfg = parse_config(DECLARED_RIGID)
+    params = {"com_dx": {"ci95": [0.001, 0.002]}, "com_dy": {"ci95": [-0.001, 0.001]}, "angle_offset": {"ci95": [-0.0006, 0.0053]},
+              "air_drag": {"ci95": [math.nan, math.nan]}}
+    assert _effect_away_from_null("com_offset", params, cfg)  # one component is enough
+    assert not _effect_away_from_null("angle_offset", params, cfg)
+    assert not _effect_away_from_null("air_drag", params, cfg)  # no interval excludes nothing
+    assert _effect_away_from_null("corner_impulse", params, cfg)  # a switch, no parameter
+    params["com_dx"]["ci95"] = [-0.001, 0.002]
+    assert not _effect_away_from_null("com_offset", params, cfg)
 
 
 @pytest.mark.slow
