@@ -169,3 +169,36 @@ def test_a_failing_task_raises_its_error(cluster, cfg, tmp_path):
             next(iter(results))
     assert not isinstance(raised.value, DiceSweepError)
     assert "fpar" in str(raised.value) or "None" in str(raised.value)
+
+
+def test_a_cancelled_tile_is_a_one_line_error_not_a_tile():
+    """A task the scheduler cancelled comes back as (future, FutureCancelledError): it must not
+    reach the writer as a tile (it once raised 'cannot unpack non-iterable FutureCancelledError')."""
+    from dice_sweep.distributed import _completed
+
+    class Future:
+        status = "cancelled"
+
+        def release(self):
+            raise AssertionError("a cancelled tile is not consumed")
+
+    class Finished:
+        def __init__(self):
+            self.batches = [[(Future(), distributed.client.FutureCancelledError("tile", "cancelled"))]]
+
+        def is_empty(self):
+            return not self.batches
+
+        def next_batch(self, block=False):
+            return self.batches.pop(0)
+
+    class FakeDistributed:
+        @staticmethod
+        def as_completed(futures, with_results, raise_errors):
+            return Finished()
+
+    class Running:
+        requested = False
+
+    with pytest.raises(DiceSweepError, match="cancelled a tile.*--resume"):
+        next(_completed(FakeDistributed, set(), Running(), "local cluster"))
