@@ -21,6 +21,15 @@ NEAR = 6 / 255  # a pixel within this of a colour on every channel has that colo
 # --- the command line ---------------------------------------------------------------------
 
 
+def ctrl_c_reaches_it():
+    """``preexec_fn`` for a child that a test stops with SIGINT: its Ctrl-C back to the default.
+    A suite started as a background job (``make test &``) runs with SIGINT ignored, the child
+    inherits that, and the server never heard the test's Ctrl-C (two view tests timed out)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def invoke(*args):
     """Invoke ``dice-sweep`` in-process; ``result.output`` holds stdout and stderr together."""
     from click.testing import CliRunner

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers import ctrl_c_reaches_it
+
 ROOT = Path(__file__).resolve().parent.parent
 README = ROOT / "README.md"
 SETUP = {"make demo", "make test"}
@@ -76,7 +78,8 @@ def test_readme_command_runs_as_written(command, workdir):
 
 def _serves(argv, cwd, env):
     """A server command (dice-sweep view) runs until it answers, then stops on Ctrl-C."""
-    process = subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=ctrl_c_reaches_it)
     try:
         first = process.stdout.readline()
         assert first.startswith("serving on http://127.0.0.1:"), (first, process.stderr.read() if process.poll() is not None else "")

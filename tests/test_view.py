@@ -26,7 +26,7 @@ from dice_sweep.sweep import SweepJob, axis_values, initial_states
 from dice_sweep.view.app import MAX_PIXELS, ViewApp
 from dice_sweep.view.headless import CHROMIUM, launch, open_page, wait_until
 from dice_sweep.view.server import bind
-from tests.helpers import CONFIGS, run_cli, small_sweep
+from tests.helpers import CONFIGS, ctrl_c_reaches_it, run_cli, small_sweep
 
 DEMO = CONFIGS / "demo.toml"
 SMALL = ["grid.x.num=16", "grid.y.num=12"]
@@ -249,7 +249,7 @@ def test_only_get(server):
 def start_view(*args):
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}"}
     process = subprocess.Popen(["dice-sweep", "view", *map(str, args)], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, env=env)
+                               stderr=subprocess.PIPE, text=True, env=env, preexec_fn=ctrl_c_reaches_it)
     first = process.stdout.readline()
     return process, first
 
