@@ -79,9 +79,7 @@ def inflation_scan(args, fit, factors=SCAN):
     cfg = load_config(CONFIG)
     source = read_fit_file(fit, cfg)
     tracks = load_tracks(args.data, sides=cfg.die.sides, circumradius=cfg.die.circumradius, angle="auto")
-    table = loop.table_height(tracks, cfg)
-    noise = loop.noise_floor(tracks, cfg, table)
-    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+    table, noise, sigma = loop.tracking_noise(tracks, cfg)
     select_set, confirm_set = tracks.split(source.confirm_fraction, source.seed)
     observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in tracks.tracks}
     spec = source.spec(cfg)

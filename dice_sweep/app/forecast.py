@@ -17,8 +17,10 @@ import numpy as np
 from dice_sweep.chaos.measures import DEFAULT_BOX_SIZE, measure_map
 from dice_sweep.config import PARAM_UNITS, Axis, Grid
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.executor import worker_count
 from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured import forecast as fc
+from dice_sweep.measured.fit import kernel_config
 from dice_sweep.measured.report import jsonable
 from dice_sweep.measured.tracks import load_tracks
 from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
@@ -96,7 +98,7 @@ def release_map(cfg, source, run, size, axes=None, workers=1):
         shown_side = observed
     ranges = [fc.map_range(states[:, c], name, cfg) for name, c in zip(chosen, columns)]
     fixed = np.median(states, axis=0)
-    model = fc.physical_config(cfg, source.spec(cfg), source.params)
+    model = kernel_config(cfg, source.spec(cfg), source.params)
     model = model.with_initial(**{name: float(fixed[k]) for k, name in enumerate(fc.STATE_COLUMNS) if name not in chosen})
     grid = Grid(Axis(chosen[0], *ranges[0], size), Axis(chosen[1], *ranges[1], size))
     model = dataclasses.replace(model, grid=grid)
@@ -163,11 +165,9 @@ def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.
     axes = parse_map_axes(map_axes) if isinstance(map_axes, str) else map_axes
     source = read_fit_file(fit_path, cfg)
     _check_angle(source, angle)
-    workers = fc.resolve_workers(workers)
+    workers = worker_count(workers)
     trackset = load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle)
-    table = loop.table_height(trackset, cfg)
-    noise = loop.noise_floor(trackset, cfg, table)
-    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+    table, noise, sigma = loop.tracking_noise(trackset, cfg)
     loaded = time.perf_counter()
     intro = f"{len(trackset.tracks)} tracks; noise floor {noise['pose'] * 1000:.3f} mm; {source.parameter_note}"
     run = fc.run_forecast(trackset, cfg, source, sigma=sigma, table=table, from_bounce=from_bounce, members=members, seed=seed,

@@ -48,9 +48,7 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
     with 95 % bootstrap intervals over tracks, and score it on the confirmation tracks."""
     check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
     trackset = _load(data_path, cfg, rate, angle)
-    table = loop.table_height(trackset, cfg)
-    noise = loop.noise_floor(trackset, cfg, table)
-    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+    table, noise, sigma = loop.tracking_noise(trackset, cfg)
     select_set, confirm_set = trackset.split(loop.CONFIRM_FRACTION, seed)
     select = shooting.prepare_tracks(select_set, cfg, noise=sigma, table=table)
     confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma, table=table)

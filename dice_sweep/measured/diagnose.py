@@ -475,6 +475,14 @@ def noise_floor(trackset, cfg, table=0.0):
                       "left out), degrees of freedom corrected; 95 % intervals by bootstrap over tracks"}
 
 
+def tracking_noise(trackset, cfg):
+    """(table height (m), :func:`noise_floor`'s dict, sigmas of x, y (m) and phi (rad) as an
+    array): what every command on tracked drops measures before it fits."""
+    table = table_height(trackset, cfg)
+    noise = noise_floor(trackset, cfg, table)
+    return table, noise, np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+
+
 def sidak_bound(comparisons):
     """One-sided normal quantile that keeps the chance of any of ``comparisons`` passing by
     chance at LEVEL."""
@@ -667,9 +675,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     say = log or (lambda message: None)
     rng = np.random.default_rng(seed)
     workers = default_workers() if workers is None else workers
-    table = table_height(trackset, cfg)
-    noise = noise_floor(trackset, cfg, table)
-    sigma = np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
+    table, noise, sigma = tracking_noise(trackset, cfg)
     select_set, confirm_set = trackset.split(confirm_fraction, seed)
     select = shooting.prepare_tracks(select_set, cfg, noise=sigma, table=table)
     confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma, table=table)
@@ -815,7 +821,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
                      "effects": list(declared)},
         "after": {"test_error": after_error, "ci95": bootstrap_rms(e_after, rng, bootstrap), "multiple_of_floor": after_error / floor,
                   "median_error": median_after, "median_ci95": median_after_ci, "median_multiple_of_floor": median_after / floor,
-                  "params": _describe_params(current, draws_after, cfg, red), "effects": list(declared) + list(current.spec.effects)},
+                  "params": described, "effects": list(declared) + list(current.spec.effects)},
         "chain": chain,
         "rounds": rounds,
         "metric": METRIC,

@@ -181,6 +181,15 @@ class Segments:
         self.guess = np.array(guess).reshape(-1, 6)
 
 
+def kernel_config(cfg, spec, values, **integrator):
+    """The config the kernel runs at fitted ``values``: the spec's effects on, the physical
+    parameters set (measurement effects are maps of the poses, not the kernel's), the event
+    integrator; ``integrator`` overrides more of its keys (``t_max``)."""
+    physical = {k: v for k, v in values.items() if registry.param(k).key.split(".")[0] != "tracking"}
+    out = registry.with_values(cfg, spec.effects, physical)
+    return dataclasses.replace(out, integrator=dataclasses.replace(out.integrator, method="event", **integrator))
+
+
 class ShootingModel:
     """Simulated poses of segments for a spec's parameters and the segments' states."""
 
@@ -193,12 +202,10 @@ class ShootingModel:
 
     def simulate(self, values, states):
         """Poses (rows, 3) as the tracker would see them, and the outcome code per segment."""
-        physical = {k: v for k, v in values.items() if registry.param(k).key.split(".")[0] != "tracking"}
-        cfg = registry.with_values(self.cfg, self.spec.effects, physical)
         times_to_true, state_to_true, pose_to_file = registry.measurement_maps(self.cfg, values)
         times = times_to_true(self.seg.times)
         horizon = float(times.max()) if times.size else 0.0
-        cfg = dataclasses.replace(cfg, integrator=dataclasses.replace(cfg.integrator, method="event", t_max=horizon + 1e-3))
+        cfg = kernel_config(self.cfg, self.spec, values, t_max=horizon + 1e-3)
         fpar, ipar = pack_params(cfg)
         ipar[IP_CONTINUE] = 1
         out = np.zeros((self.seg.times.size, 6))

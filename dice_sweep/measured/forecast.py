@@ -39,7 +39,6 @@ Plain numbers and arrays out; no plotting (dice_sweep.plotting draws them), no f
 layer reads the fit JSON text and writes the outputs).
 """
 
-import dataclasses
 import math
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -48,9 +47,10 @@ import numpy as np
 
 from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.executor import default_workers, ordered_map
+from dice_sweep.executor import ordered_map
 from dice_sweep.geometry import clear_of_surfaces, side_below
 from dice_sweep.measured import fit as shooting
+from dice_sweep.measured.fit import kernel_config
 from dice_sweep.measured.impacts import rest_pose
 from dice_sweep.physics import COUNT_COLUMNS, STATE_COLUMNS, pack_params, roll_batch
 
@@ -191,14 +191,6 @@ def sample_params(source, cfg, count, rng):
 # --- the model at given parameter values -----------------------------------------------------
 
 
-def physical_config(cfg, spec, values):
-    """The config of the kernel at fitted ``values`` (measurement effects left to the maps),
-    with the event integrator the fits use."""
-    physical = {k: v for k, v in values.items() if registry.param(k).key.split(".")[0] != "tracking"}
-    out = registry.with_values(cfg, spec.effects, physical)
-    return dataclasses.replace(out, integrator=dataclasses.replace(out.integrator, method="event"))
-
-
 def true_states(cfg, values, states):
     """States (n, 6) in the file's units -> the kernel's (the measurement effects at ``values``)."""
     _, state_to_true, _ = registry.measurement_maps(cfg, values)
@@ -218,11 +210,6 @@ def _roll(fpar, ipar, states):
     status = np.empty(n, np.uint8)
     roll_batch(fpar, ipar, states, outcome, status, np.empty((n, len(COUNT_COLUMNS)), np.int32), np.empty(n))
     return outcome, status
-
-
-def resolve_workers(workers):
-    """``workers``, or all the cores this process may use for None."""
-    return default_workers() if workers is None else workers
 
 
 def clear_starts(cfg, states):
@@ -327,7 +314,7 @@ class _DrawTask:
             clear[bad] = clear_starts(self.cfg, states[bad])
         outcome = np.full(len(states), -2, np.int8)
         if clear.any():
-            got, status = roll(physical_config(self.cfg, self.spec, values), states[clear])
+            got, status = roll(kernel_config(self.cfg, self.spec, values), states[clear])
             outcome[clear] = np.where(status == 0, got, -1)
         return outcome.reshape(tracks, m), redraws
 
@@ -363,7 +350,7 @@ def ensemble_forecast(cfg, source, flights, observed, *, bounce, members=DEFAULT
     means = np.array([f.state for f in flights]).reshape(-1, 6)
     factors = np.array([_gaussian_factor(f.cov) for f in flights]).reshape(-1, 6, 6)
     n = cfg.die.sides
-    best = physical_config(cfg, spec, source.params)
+    best = kernel_config(cfg, spec, source.params)
     deterministic = np.full(len(flights), -1, np.int64)
     if flights:
         outcome, status = roll(best, true_states(cfg, source.params, means))  # also compiles before the workers fork

@@ -97,6 +97,12 @@ def axis_labels(sweep) -> tuple[str, str]:
     return axis_label(sweep.x.param, sweep.x.unit), axis_label(sweep.y.param, sweep.y.unit)
 
 
+def sweep_axes(sweep) -> tuple:
+    """(x values, y values, x label, y label) of a sweep: the axes arguments of
+    :func:`~dice_sweep.plotting.maps.draw_outcome_map` and ``outcome_figure``."""
+    return (sweep.x.values, sweep.y.values, *axis_labels(sweep))
+
+
 def panel_figure(panels, dpi, panel_size=None):
     """A Figure with one axes per panel in a row (each ``panel_size`` inches, default
     PANEL_FIGSIZE), and the list of axes."""

@@ -20,10 +20,9 @@ from dice_sweep.plotting.common import (
     UNDECIDED_COLOR,
     cell_extent,
     panel_figure,
-    axis_label,
-    check_dpi,
     draw_scalar_map,
     outcome_colors,
+    sweep_axes,
 )
 
 
@@ -39,7 +38,7 @@ def draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, t
     x_values, y_values : array_like of float, shapes (nx,) and (ny,)
         Cell centres of the two axes (equally spaced), in the parameters' SI units.
     x_label, y_label : str
-        Axis labels with parameter and unit, see :func:`axis_label`.
+        Axis labels with parameter and unit, see :func:`~dice_sweep.plotting.common.axis_label`.
     sides : int
         Number of sides n of the die.
     title : str, optional
@@ -198,10 +197,7 @@ def sweep_figure(sweep, title, *, box=None, dpi=150):
         check_box(box, sweep.extent)
     return outcome_figure(
         sweep.outcome,
-        sweep.x.values,
-        sweep.y.values,
-        axis_label(sweep.x.param, sweep.x.unit),
-        axis_label(sweep.y.param, sweep.y.unit),
+        *sweep_axes(sweep),
         sweep.sides,
         title=title,
         box=box,
@@ -235,10 +231,7 @@ def plot_comparison(sweeps, titles, png_path, *, dpi=100):
         draw_outcome_map(
             ax,
             sweep.outcome,
-            sweep.x.values,
-            sweep.y.values,
-            axis_label(sweep.x.param, sweep.x.unit),
-            axis_label(sweep.y.param, sweep.y.unit),
+            *sweep_axes(sweep),
             sweep.sides,
             title=title,
             extent=sweep.extent,
@@ -268,7 +261,7 @@ def plot_refinement(sweep, refine_level, levels, png_path, *, dpi=100):
         ``png_path``.
     """
     fig, (ax_outcome, ax_level) = panel_figure(2, dpi)
-    axes = (sweep.x.values, sweep.y.values, axis_label(sweep.x.param, sweep.x.unit), axis_label(sweep.y.param, sweep.y.unit))
+    axes = sweep_axes(sweep)
     ny, nx = sweep.outcome.shape
     draw_outcome_map(ax_outcome, sweep.outcome, *axes, sweep.sides, title=f"refined sweep, {ny} x {nx}", extent=sweep.extent,
                      computed=sweep.computed)
