@@ -3,8 +3,9 @@ generator (tests/measured/independent.py), fitted with the true model, over many
 
     python scripts/coverage_measured.py [--seeds 20] [--tracks 90]
 
-Prints, per parameter, the share of seeds whose interval covers the true value, the mean
-error and the mean half-width. Needs the tests folder (a checkout), not only the package.
+Prints, per parameter, the share of seeds whose interval covers the true value with its exact
+95 % interval, the chance of so few hits if the coverage were 95 %, the mean error and the mean
+half-width. Needs the tests folder (a checkout), not only the package.
 """
 
 import argparse
@@ -14,6 +15,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from scipy.stats import beta, binom
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -24,6 +26,13 @@ from tests.measured.cases import DECLARED_RIGID, NOISE, TRUE_COEFFICIENTS  # noq
 from tests.measured.independent import Truth, simulate_drops, write_csv  # noqa: E402
 
 TRUE = TRUE_COEFFICIENTS
+
+
+def clopper_pearson(hits, count):
+    """Exact 95 % interval of a coverage from ``hits`` of ``count`` sets."""
+    low = float(beta.ppf(0.025, hits, count - hits + 1)) if hits > 0 else 0.0
+    high = float(beta.ppf(0.975, hits + 1, count - hits)) if hits < count else 1.0
+    return [low, high]
 
 
 def main():
@@ -44,7 +53,10 @@ def main():
     for name, true in TRUE.items():
         values = np.array([row[name] for row in rows])
         covered = (values[:, 1] <= true) & (true <= values[:, 2])
-        summary[name] = {"true": true, "coverage": float(covered.mean()), "seeds": len(rows),
+        hits = int(covered.sum())
+        summary[name] = {"true": true, "coverage": float(covered.mean()), "covered": hits, "seeds": len(rows),
+                         "coverage_ci95": clopper_pearson(hits, len(rows)),
+                         "p_value_if_95": float(binom.cdf(hits, len(rows), 0.95)),
                          "mean_error": float(np.mean(values[:, 0] - true)), "sd_of_estimates": float(np.std(values[:, 0])),
                          "mean_half_width": float(np.mean(values[:, 2] - values[:, 1]) / 2)}
     print(json.dumps(summary, indent=1))

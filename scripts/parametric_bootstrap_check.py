@@ -1,7 +1,8 @@
-"""Parametric bootstrap against the bootstrap over tracks on one set of drops from the
-independent generator (docs/dev/measured_intervals.md, issue 14): fit the true model, simulate
-the fitted model's poses at the fitted states, add the measured tracking noise, refit warm, and
-compare the spread of the refits with the one-step bootstrap over tracks.
+"""Parametric bootstrap against the bootstrap over tracks and the first-order noise covariance
+(diagnose.noise_covariance) on one set of drops from the independent generator
+(docs/dev/measured_intervals.md, issue 14): fit the true model, simulate the fitted model's poses
+at the fitted states, add the measured tracking noise (one draw per frame: a frame is a row of
+its flight's segment and of the segment before), refit warm, and compare the spreads.
 
     python scripts/parametric_bootstrap_check.py SEED DRAWS     (e.g. 3 30; about 10 s)
 
@@ -33,6 +34,8 @@ spec = shooting.ModelSpec.of(cfg)
 fit = shooting.fit_spec(cfg, spec, seg)
 lin = shooting.linearise(cfg, fit, seg); red = loop._reduce(lin, seg)
 draws = loop.bootstrap_params(red, seg, list(fit.free), fit.params, cfg, np.random.default_rng(seed))
+sigmas = (sigma[0], sigma[1], cfg.die.circumradius * sigma[2])
+first_order = np.sqrt(np.diag(loop.noise_covariance(red, seg, sigmas)))
 print("fit friction", fit.params["friction"], "track-bootstrap sd", draws[:, 2].std(), "sigma", sigma, flush=True)
 model = shooting.ShootingModel(cfg, spec, seg)
 clean, _ = model.simulate(fit.params, fit.states)
@@ -41,8 +44,9 @@ rng = np.random.default_rng(1)
 est = []
 t0 = time.time()
 for b in range(n):
-    seg.measured = clean + rng.normal(size=clean.shape) * sigma
+    seg.measured = clean + (rng.normal(size=(seg.frames, 3)) * sigma)[seg.frame_rows]
     r = shooting.fit_spec(cfg, spec, seg, start=fit.params, states=fit.states)
     est.append([r.params[k] for k in ("beta_normal", "beta_tangential", "friction")])
 est = np.array(est)
-print("parametric sd (bn, bt, f)", est.std(axis=0), "mean shift", est.mean(axis=0) - [fit.params[k] for k in ("beta_normal", "beta_tangential", "friction")], "track-bootstrap sd", draws.std(axis=0), time.time() - t0)
+print("parametric sd (bn, bt, f)", est.std(axis=0), "mean shift", est.mean(axis=0) - [fit.params[k] for k in ("beta_normal", "beta_tangential", "friction")], "track-bootstrap sd", draws.std(axis=0),
+      "first-order noise sd", first_order, f"{time.time() - t0:.1f} s")

@@ -45,7 +45,8 @@ def _residual_pictures(residuals, prepared, segments, png_dir):
 
 def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=None, png_dir=None, seed=0):
     """Fit the declared model plus ``effects`` on the selection tracks (multiple shooting),
-    with 95 % bootstrap intervals over tracks, and score it on the confirmation tracks."""
+    with 95 % intervals (bootstrap over tracks and the tracking noise's share), and score it on
+    the confirmation tracks."""
     check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
     trackset = _load(data_path, cfg, rate, angle)
     table, noise, sigma = loop.tracking_noise(trackset, cfg)
@@ -64,14 +65,14 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
     fit = shooting.fit_spec(cfg, spec, seg_select)
     lin = shooting.linearise(cfg, fit, seg_select)
     red = loop._reduce(lin, seg_select)
-    draws = loop.bootstrap_params(red, seg_select, list(fit.free), fit.params, cfg, rng)
+    draws, params = loop.parameter_intervals(fit, red, seg_select, cfg, rng, loop.residual_sigmas(noise, cfg))
     e_train = shooting.track_errors(seg_select, lin.residual)
     e_test, residual_test = loop._confirm(cfg, fit, seg_confirm)
     result = {
         "metric": loop.METRIC,
         "model": cfg.contact.model if "corner_impulse" not in extra else "rigid",
         "effects": list(declared) + list(extra),
-        "params": loop._describe_params(fit, draws, cfg, red),
+        "params": params,
         "train_error": shooting.rms(e_train),
         "test_error": shooting.rms(e_test),
         "ci95": loop.bootstrap_rms(e_test, rng),

@@ -76,6 +76,9 @@ class ModelSpec:
     def with_effect(self, name):
         return ModelSpec(self.effects + (name,), self.declared)
 
+    def without(self, names):
+        return ModelSpec(tuple(e for e in self.effects if e not in names), self.declared)
+
 
 def declared_effects(cfg):
     return registry.declared_effects(cfg)
@@ -150,11 +153,14 @@ class Segments:
     Attributes: ``track`` (segment -> track index), ``starts`` (row offsets per segment),
     ``times`` (file s from the segment's first frame), ``measured`` (rows, 3),
     ``predicted`` (row after the segment's impact), ``track_rows`` (row -> track),
-    ``guess`` (segments, 6) ballistic start states in file units.
+    ``guess`` (segments, 6) ballistic start states in file units, ``frame_rows`` (row -> frame
+    of the prepared tracks, numbered across tracks: a flight's frames are rows of its own segment
+    and of the one before, which predicts them, so they carry the same tracking noise twice).
     """
 
     def __init__(self, prepared, g):
         track, times, measured, predicted, track_rows, guess, starts = [], [], [], [], [], [], [0]
+        frame_rows, frames = [], 0
         for i, prep in enumerate(prepared):
             for k, (first, last) in enumerate(prep.flights):
                 end = prep.flights[k + 1][1] if k + 1 < len(prep.flights) else last
@@ -164,8 +170,10 @@ class Segments:
                 measured.append(prep.pose[rows])
                 predicted.append(rows > last)
                 track_rows.append(np.full(rows.size, i))
+                frame_rows.append(frames + rows)
                 guess.append(_ballistic_guess(prep.t[first:last + 1], prep.pose[first:last + 1], g))
                 starts.append(starts[-1] + rows.size)
+            frames += prep.t.size
         self.count = len(track)
         self.tracks = len(prepared)
         self.track = np.array(track, dtype=np.int64)
@@ -174,6 +182,8 @@ class Segments:
         self.measured = np.concatenate(measured) if measured else np.zeros((0, 3))
         self.predicted = np.concatenate(predicted) if predicted else np.zeros(0, bool)
         self.track_rows = np.concatenate(track_rows) if track_rows else np.zeros(0, np.int64)
+        self.frame_rows = np.concatenate(frame_rows) if frame_rows else np.zeros(0, np.int64)
+        self.frames = frames
         self.segment_rows = np.repeat(np.arange(self.count), np.diff(self.starts))
         # rows are grouped by track: each track's first row, and the end
         self.track_starts = np.searchsorted(self.track_rows, np.arange(self.tracks + 1))

@@ -50,6 +50,7 @@ from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import ordered_map
 from dice_sweep.geometry import clear_of_surfaces, side_below
 from dice_sweep.measured import fit as shooting
+from dice_sweep.measured.diagnose import Z95
 from dice_sweep.measured.fit import kernel_config
 from dice_sweep.measured.impacts import rest_pose
 from dice_sweep.physics import COUNT_COLUMNS, STATE_COLUMNS, pack_params, roll_batch
@@ -62,7 +63,6 @@ BOOTSTRAP = 2000  # resamples of the tracks for every interval
 RELIABILITY_BINS = 10
 MIN_BOUNCE_TRACKS = 5  # a forecast point with fewer scored tracks is left out of by_bounce
 REDRAWS = 20  # times a start inside the table is drawn again before the member is dropped
-Z95 = 1.959963984540054
 FLIGHT_TIME_MARGIN = 1e-3  # s past a flight's last frame the fit's kernel runs
 
 

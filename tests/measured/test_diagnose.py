@@ -44,6 +44,8 @@ def assert_named_effects_are_away_from_null(report, cfg):
         own = [p.name for p in registry.effect(name).params]
         assert not own or any(_null_excluded(n, report["params"][n]["ci95"], cfg) for n in own), (name, report["params"])
     assert not {r["effect"] for r in report["effects_removed"]} & set(report["effects_added"])
+    for step in report["chain"]:  # and each step still named keeps a significant gain in the final model
+        assert step["removed"] or step["final_z"] > step["threshold_z"], step
 
 
 def covers(report, name, value):
@@ -159,14 +161,12 @@ FLAT_LANDING_STARTS = {"phi": (math.pi / 4 - 0.03, math.pi / 4 + 0.03), "spin": 
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(reason="the loop names angle_offset (0.0296 [0.0240, 0.0351] rad, z = 5.76) instead: the flat_landing "
-                          "candidate, its flights refreshed from their guesses, removes more of the excess (79 %, z = 6.26) but "
-                          "ends at the bound 1e-3 s for 8e-4, so it is not added. Fitted from fresh states alone the same "
-                          "candidate reached 8.0e-4 s from one start and 9.65e-4 s from another at costs 0.009 and 0.0013: the "
-                          "cost is rough in contact_time. With the truth declared the fit gives 7.99e-4 s [7.91e-4, 8.08e-4] "
-                          "at 0.98 x the floor (test_flat_landing_truth_declared_is_explained): the search, not the physics")
 def test_flat_landing_contact_time_is_found(tmp_path):
+    """Caught: the candidate ended at the bound 1e-3 s and angle_offset was named instead; its
+    flights refreshed from their guesses at the fitted values (diagnose.fit_candidate) it is
+    found."""
     report = run_loop(tmp_path, FLAT_LANDING_TRUTH, starts=FLAT_LANDING_STARTS)
+    print("flat_landing:", report["effects_added"], report["verdict"], report["params"]["contact_time"])
     assert report["effects_added"][:1] == ["flat_landing"], report["rounds"]
     assert report["verdict"] in ("explained", "improved")
     assert covers(report, "contact_time", 8e-4), report["params"]["contact_time"]
@@ -177,15 +177,18 @@ FLAT_LANDING_DECLARED = DECLARED_RIGID.replace("beta_normal = 0.3", "beta_normal
 
 
 @pytest.mark.slow
-def test_an_effect_back_at_its_null_is_not_named(tmp_path):
-    # flat landings with a contact time of 5e-4 s: angle_offset is added in round 1 at about
-    # 0.03 rad (z = 4.35; the flat_landing candidate removes more but its interval holds 0), and
-    # the later rounds' refits bring it back to 0.0024 [-0.0006, 0.0053] rad. Before the final
-    # check the report named it; flat_landing itself is not found here (the xfail above)
+def test_an_effect_back_near_its_null_is_not_named(tmp_path):
+    # flat landings with a contact time of 5e-4 s: angle_offset is added in round 1 at 0.013 rad
+    # (z = 3.59; the flat_landing candidate ends at 1.3e-4 s with an interval that holds 0), and
+    # the later rounds' refits bring it to 0.0036 [0.0015, 0.0056] rad: clear of 0, but its
+    # gain in the final model is z = 0.95 against the 2.49 it passed. Before the final checks
+    # the report named it. (Earlier versions of the loop brought it back to 0.0024 [-0.0006,
+    # 0.0053] rad, inside its interval: the other final check.) flat_landing is not found here.
     report = run_loop(tmp_path, dict(TRUTH, contact_time=5e-4), starts=FLAT_LANDING_STARTS)
     assert [r["effect"] for r in report["effects_removed"]] == ["angle_offset"]
     assert "angle_offset" not in report["effects_added"] and "angle_offset" not in report["params"]
     assert report["chain"][0]["removed"] == ["angle_offset"]
+    assert report["verdict"] == "unexplained"
 
 
 def test_an_effect_is_away_from_its_null_by_its_intervals():
@@ -238,7 +241,7 @@ def test_four_times_the_noise(four_times_the_noise):
 @pytest.mark.slow
 # at 4x the noise this set once gave drag 0.774 [0.730, 0.799] and friction 0.295: a local optimum,
 # left since contact candidates start their flights from fresh states (diagnose.fit_candidate) and
-# so find the current model's better optimum; now 0.800 [0.785, 0.817] and 0.2996 [0.2979, 0.3010]
+# so find the current model's better optimum; now 0.800 [0.785, 0.816] and 0.2996 [0.2978, 0.3010]
 def test_four_times_the_noise_interval_covers_the_drag(four_times_the_noise):
     assert covers(four_times_the_noise, "air_drag", 0.8), four_times_the_noise["params"]["air_drag"]
     assert covers(four_times_the_noise, "friction", 0.3), four_times_the_noise["params"]["friction"]

@@ -44,3 +44,42 @@ def test_every_flight_is_described_to_the_noise_at_the_truth(segments):
     e2 = np.einsum("ij,ij->i", residual, residual)
     per_flight = np.sqrt(np.add.reduceat(e2, seg.starts[:-1]) / np.diff(seg.starts))
     assert per_flight.max() < 2e-5  # m; the pose noise is about 2e-6 m
+
+
+def test_frame_rows_point_at_the_frames_each_row_measures(segments):
+    cfg, seg = segments
+    assert seg.frame_rows.size == seg.measured.shape[0] and seg.frame_rows.max() < seg.frames
+    # a flight's frames are rows of its own segment and of the one before (the prediction)
+    counts = np.bincount(seg.frame_rows, minlength=seg.frames)
+    assert counts.max() == 2 and (counts == 2).sum() > 0
+    same = seg.frame_rows[:, None] == seg.frame_rows[None, :200]
+    rows, cols = np.nonzero(same)
+    np.testing.assert_array_equal(seg.measured[rows], seg.measured[cols])
+
+
+def test_the_noise_covariance_matches_refits_of_simulated_noise(tmp_path):
+    """First-order noise sd (diagnose.noise_covariance) against the spread of warm refits of the
+    fitted model's poses with tracking noise added, one draw per frame: the nonlinear fit, not
+    the linear algebra (tests/measured/test_reduced.py does that). 30 refits: the spread's own
+    uncertainty is about 13 %."""
+    from dice_sweep.measured import diagnose as loop
+    from tests.measured.cases import NOISE as TRACKER
+
+    path = tmp_path / "drops.csv"
+    write_csv(path, simulate_drops(Truth(contact="rigid", **TRUE_COEFFICIENTS), 40, 7, rate=500.0, noise=TRACKER))
+    cfg = parse_config(DECLARED_RIGID)
+    sigma = np.array([TRACKER[0], TRACKER[0], TRACKER[1]])
+    seg = shooting.Segments(shooting.prepare_tracks(load_tracks(path, sides=4, circumradius=RADIUS), cfg, noise=sigma), cfg.world.g)
+    spec = shooting.ModelSpec.of(cfg)
+    fit = shooting.fit_spec(cfg, spec, seg)
+    red = loop._reduce(shooting.linearise(cfg, fit, seg), seg)
+    first_order = np.sqrt(np.diag(loop.noise_covariance(red, seg, (sigma[0], sigma[1], RADIUS * sigma[2]))))
+    clean, _ = shooting.ShootingModel(cfg, spec, seg).simulate(fit.params, fit.states)
+    rng = np.random.default_rng(1)
+    refits = []
+    for _ in range(30):
+        seg.measured = clean + (rng.normal(size=(seg.frames, 3)) * sigma)[seg.frame_rows]
+        refit = shooting.fit_spec(cfg, spec, seg, start=fit.params, states=fit.states)
+        refits.append([refit.params[name] for name in fit.free])
+    ratio = np.std(refits, axis=0) / first_order
+    assert np.all((ratio > 0.7) & (ratio < 1.4)), dict(zip(fit.free, ratio))

@@ -281,8 +281,10 @@ def test_the_json_of_fit_feeds_the_forecast(drops, tmp_path):
     assert written["split"] == {"confirm_fraction": 0.3, "seed": 0} and written["data"]["path"] == str(data)
     draws = np.array(written["bootstrap_draws"]["values"])
     assert written["bootstrap_draws"]["names"] == list(written["params"]) and draws.shape == (1000, len(written["params"]))
-    for k, name in enumerate(written["params"]):  # the draws are the ones the intervals come from
-        assert np.quantile(draws[:, k], [0.025, 0.975]) == pytest.approx(written["params"][name]["ci95"])
+    for k, name in enumerate(written["params"]):  # the draws are the ones the track intervals come from
+        entry = written["params"][name]
+        assert np.quantile(draws[:, k], [0.025, 0.975]) == pytest.approx(entry["ci95_tracks"])
+        assert entry["ci95"][0] <= entry["ci95_tracks"][0] and entry["ci95_tracks"][1] <= entry["ci95"][1]  # the interval spans both
     out = tmp_path / "f.json"
     result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 16, "--json", out, "--quiet")
     assert result.exit_code == 0, result.output

@@ -109,3 +109,58 @@ def test_bootstrap_without_resampling_is_the_full_step(problem):
 
     draws = loop.bootstrap_params(red, seg, NAMES, VALUES, cfg, Once(), draws=3)
     np.testing.assert_allclose(draws, [[0.5, 0.0]] * 3, atol=1e-12)
+
+
+class SharedFrameSegments:
+    """Segments built like ``fit.Segments``: each flight's segment holds its own frames and the
+    next flight's (the prediction through the impact), so those frames are rows twice."""
+
+    def __init__(self, rng, tracks=8):
+        frame_rows, track, starts, frames = [], [], [0], 0
+        for t in range(tracks):
+            own = [int(rng.integers(6, 12)) for _ in range(rng.integers(1, 4))]
+            first = np.concatenate([[0], np.cumsum(own)]) + frames
+            for k in range(len(own)):
+                end = first[k + 2] if k + 1 < len(own) else first[k + 1]
+                frame_rows.append(np.arange(first[k], end))
+                track.append(t)
+                starts.append(starts[-1] + end - first[k])
+            frames = first[-1]
+        self.tracks, self.count, self.frames = tracks, len(track), int(frames)
+        self.track = np.array(track)
+        self.starts = np.array(starts)
+        self.frame_rows = np.concatenate(frame_rows)
+        self.segment_rows = np.repeat(np.arange(self.count), np.diff(self.starts))
+        self.track_rows = self.track[self.segment_rows]
+        self.track_starts = np.searchsorted(self.track_rows, np.arange(tracks + 1))
+        self.track_segment_starts = np.searchsorted(self.track, np.arange(tracks + 1))
+
+
+def test_noise_covariance_equals_direct_least_squares():
+    """The parameters' covariance from frame noise against the weighted least-squares step of
+    the whole linear problem (parameters and every segment's state), written as a matrix of the
+    frames' noise: a frame measured by two segments moves both (rows drawn independently gave
+    a covariance too small; the refits of docs/dev/measured_intervals.md share frames)."""
+    rng = np.random.default_rng(7)
+    seg = SharedFrameSegments(rng)
+    rows = seg.starts[-1]
+    lin = shooting.Linearisation(rng.normal(size=(rows, 3)) * 1e-3, rng.uniform(0.2, 1.0, rows),
+                                 rng.normal(size=(rows, 3, 2)), rng.normal(size=(rows, 3, 6)))
+    sigmas = np.array([2e-4, 3e-4, 1e-4])
+    got = loop.noise_covariance(loop._reduce(lin, seg), seg, sigmas)
+    design = np.zeros((rows * 3, 2 + 6 * seg.count))
+    design[:, :2] = lin.jac_params.reshape(-1, 2)
+    for r in range(rows):
+        c = 2 + 6 * seg.segment_rows[r]
+        design[3 * r:3 * r + 3, c:c + 6] = lin.jac_states[r]
+    weight = np.repeat(lin.weight, 3)
+    frames_to_rows = np.zeros((rows * 3, seg.frames * 3))  # the noise of frame f, column c lands on every row of f
+    for r, f in enumerate(seg.frame_rows):
+        frames_to_rows[3 * r:3 * r + 3, 3 * f:3 * f + 3] = np.eye(3)
+    step = -np.linalg.solve(design.T @ (weight[:, None] * design), design.T @ (weight[:, None] * frames_to_rows))[:2]
+    want = step @ np.diag(np.tile(sigmas**2, seg.frames)) @ step.T
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+    # the same rows, each its own frame, give another covariance: the shared frames count
+    seg.frame_rows, seg.frames = np.arange(rows), int(rows)
+    apart = loop.noise_covariance(loop._reduce(lin, seg), seg, sigmas)
+    assert np.max(np.abs(np.diag(apart) / np.diag(got) - 1.0)) > 0.05
