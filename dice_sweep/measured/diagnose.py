@@ -239,7 +239,7 @@ def noise_covariance(red, segments, sigmas):
     if p == 0:
         return np.zeros((0, 0))
     # C = A - B X per row: the parameters' Jacobian with the row's segment state refitted
-    reduced_jac = lin.jac_params - np.einsum("rcs,rsp->rcp", lin.jac_states, red.solved[segments.segment_rows])
+    reduced_jac = lin.jac_params - lin.jac_states @ red.solved[segments.segment_rows]
     per_frame = np.zeros((segments.frames, 3, p))
     np.add.at(per_frame, segments.frame_rows, reduced_jac * red.weight[:, None, None])
     per_frame *= np.asarray(sigmas, dtype=float)[None, :, None]
