@@ -29,13 +29,18 @@ class FakeSegments:
             for _ in range(rng.integers(1, 4)):
                 sizes.append(int(rng.integers(8, 20)))
                 track.append(t)
-        self.tracks, self.count = tracks, len(sizes)
+        self.tracks = tracks
+        self._index(track, sizes)
+
+    def _index(self, track, sizes):
+        """Row and segment indices from each segment's track and row count (as fit.Segments)."""
+        self.count = len(sizes)
         self.track = np.array(track)
         self.starts = np.concatenate([[0], np.cumsum(sizes)])
         self.segment_rows = np.repeat(np.arange(self.count), sizes)
         self.track_rows = self.track[self.segment_rows]
-        self.track_starts = np.searchsorted(self.track_rows, np.arange(tracks + 1))
-        self.track_segment_starts = np.searchsorted(self.track, np.arange(tracks + 1))
+        self.track_starts = np.searchsorted(self.track_rows, np.arange(self.tracks + 1))
+        self.track_segment_starts = np.searchsorted(self.track, np.arange(self.tracks + 1))
 
 
 @pytest.fixture
@@ -111,12 +116,12 @@ def test_bootstrap_without_resampling_is_the_full_step(problem):
     np.testing.assert_allclose(draws, [[0.5, 0.0]] * 3, atol=1e-12)
 
 
-class SharedFrameSegments:
+class SharedFrameSegments(FakeSegments):
     """Segments built like ``fit.Segments``: each flight's segment holds its own frames and the
     next flight's (the prediction through the impact), so those frames are rows twice."""
 
     def __init__(self, rng, tracks=8):
-        frame_rows, track, starts, frames = [], [], [0], 0
+        frame_rows, track, frames = [], [], 0
         for t in range(tracks):
             own = [int(rng.integers(6, 12)) for _ in range(rng.integers(1, 4))]
             first = np.concatenate([[0], np.cumsum(own)]) + frames
@@ -124,16 +129,10 @@ class SharedFrameSegments:
                 end = first[k + 2] if k + 1 < len(own) else first[k + 1]
                 frame_rows.append(np.arange(first[k], end))
                 track.append(t)
-                starts.append(starts[-1] + end - first[k])
             frames = first[-1]
-        self.tracks, self.count, self.frames = tracks, len(track), int(frames)
-        self.track = np.array(track)
-        self.starts = np.array(starts)
+        self.tracks, self.frames = tracks, int(frames)
         self.frame_rows = np.concatenate(frame_rows)
-        self.segment_rows = np.repeat(np.arange(self.count), np.diff(self.starts))
-        self.track_rows = self.track[self.segment_rows]
-        self.track_starts = np.searchsorted(self.track_rows, np.arange(tracks + 1))
-        self.track_segment_starts = np.searchsorted(self.track, np.arange(tracks + 1))
+        self._index(track, [rows.size for rows in frame_rows])
 
 
 def test_noise_covariance_equals_direct_least_squares():
