@@ -345,15 +345,25 @@ def fit_candidate(cfg, current, effect_name, segments, previous=None):
             best = result
     if not best.converged and len(starts) > 1:
         best = shooting.fit_spec(cfg, spec, segments, start=best.params, states=best.states)
-    if refresh and any(best.at_bound.get(p.name) and best.params[p.name] != p.null_value(cfg) for p in registry.effect(effect_name).params):
-        # at a bound other than its null, once more at the fitted values: on flat-landing drops
-        # the fit from the start values' states ended at the bound 1e-3 s (cost 0.039); 79
+    if refresh and _at_a_bound_off_null(best, effect_name, cfg):
+        # once more at the fitted values: on flat-landing drops the fit from the start
+        # values' states ended at the bound 1e-3 s (cost 0.039); 79
         # flights then fitted better from their guesses, and the refit reached 9.7e-4 s at cost
         # 0.0014 (tests/measured/test_diagnose.py::test_flat_landing_contact_time_is_found).
         # Not for every candidate, nor at a null bound (speed_restitution at 0): on the real
         # drops that cost 25 s of diagnose's 2 minutes, in rounds repeated for optima 1 % lower.
         best = shooting.fit_spec(cfg, spec, segments, start=best.params, states=best.states, refresh=True)
     return best
+
+
+def _at_a_bound_off_null(fit, effect_name, cfg):
+    """Whether a parameter of the effect ends at a fit bound (``fit.at_bound``) that is not its
+    null value: at a null bound (speed_restitution at 0) the effect is simply absent."""
+    for p in registry.effect(effect_name).params:
+        low, high = p.bounds_of(cfg)
+        if fit.at_bound.get(p.name) and abs(fit.params[p.name] - p.null_value(cfg)) > shooting.AT_BOUND * (high - low):
+            return True
+    return False
 
 
 def _null_excluded(name, interval, cfg):
@@ -414,7 +424,8 @@ def _describe_params(fit, draws, cfg, red=None, noise_cov=None):
             # landing's delay): the bootstrap would give a zero-width interval, not a measurement.
             out[name]["identified"] = bool(info.sum() > 0)
             if not out[name]["identified"]:
-                out[name]["ci95"] = [math.nan, math.nan]
+                out[name]["ci95"] = out[name]["ci95_tracks"] = [math.nan, math.nan]
+                out[name]["sd_noise"] = math.nan
     return out
 
 

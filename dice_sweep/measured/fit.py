@@ -417,6 +417,7 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
     return values, states, cost, iterations, converged
 
 
+AT_BOUND = 1e-6  # share of a parameter's range within which it counts as at that bound
 FRESH_PASSES = 2  # times the states are refitted from their ballistic guesses after a fit
 
 
@@ -474,7 +475,7 @@ def fit_spec(cfg, spec, segments, start=None, states=None, fixed=False, max_iter
     for name in free:
         low, high = registry.param(name).bounds_of(cfg)
         span = high - low
-        at_bound[name] = bool(values[name] <= low + 1e-6 * span or values[name] >= high - 1e-6 * span)
+        at_bound[name] = bool(values[name] <= low + AT_BOUND * span or values[name] >= high - AT_BOUND * span)
     return FitResult(spec, values, states, free, cost, iterations, converged, at_bound)
 
 

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from dice_sweep.config import default_config
-from dice_sweep.measured.diagnose import _describe_params, _null_excluded
+from dice_sweep.measured.diagnose import _at_a_bound_off_null, _describe_params, _null_excluded
 
 
 def _fit(names, values):
@@ -29,7 +29,24 @@ def test_a_parameter_without_information_has_no_interval_and_excludes_nothing():
     assert not out["contact_time"]["identified"]
     assert all(math.isnan(v) for v in out["contact_time"]["ci95"])
     assert not _null_excluded("contact_time", out["contact_time"]["ci95"], cfg)
+    # nor a zero-width interval from the tracks, nor a noise share, with the noise covariance
+    out = _describe_params(fit, draws, cfg, SimpleNamespace(M=info), noise_cov=np.diag([1e-6, 0.0]))
+    assert all(math.isnan(v) for v in out["contact_time"]["ci95"] + out["contact_time"]["ci95_tracks"])
+    assert math.isnan(out["contact_time"]["sd_noise"])
+    assert out["beta_normal"]["ci95"][0] <= 0.4 - 1.96e-3 and out["beta_normal"]["ci95"][1] >= 0.4 + 1.96e-3  # spans the noise share
     # with any information the interval is kept and can exclude the null
     info[2, 1, 1] = 1e-3
     out = _describe_params(fit, draws, cfg, SimpleNamespace(M=info))
     assert out["contact_time"]["identified"] and _null_excluded("contact_time", out["contact_time"]["ci95"], cfg)
+
+
+def test_a_bound_counts_for_a_refit_only_away_from_the_null():
+    """fit_candidate refits a contact candidate at a bound, but not at its null bound (an absent
+    effect): contact_time's bounds are 0 (its null) and 1e-3 s."""
+    cfg = default_config()
+    at = lambda value: SimpleNamespace(params={"contact_time": value}, at_bound={"contact_time": True})
+    assert _at_a_bound_off_null(at(1e-3), "flat_landing", cfg)
+    assert not _at_a_bound_off_null(at(0.0), "flat_landing", cfg)
+    assert not _at_a_bound_off_null(at(1e-10), "flat_landing", cfg)  # at the null bound within at_bound's tolerance
+    assert not _at_a_bound_off_null(SimpleNamespace(params={"contact_time": 5e-4}, at_bound={"contact_time": False}), "flat_landing", cfg)
+    assert not _at_a_bound_off_null(SimpleNamespace(params={}, at_bound={}), "corner_impulse", cfg)  # no parameter
