@@ -332,8 +332,8 @@ def _data_options(command):
 @click.option("--png", "png_dir", metavar="DIR", help="Draw the residual against time into this folder.")
 def fit_command(data, config_path, rate, angle, effects_text, json_path, png_dir):
     """Fit the declared model (plus --effects) to whole tracked drops by multiple shooting on
-    the selection tracks, with 95 % intervals (bootstrap over tracks and tracking noise); score it on the
-    confirmation tracks (RMS pose error, m) against the tracking noise.
+    the selection tracks, with 95 % intervals (bootstrap over tracks and tracking noise);
+    score it on the confirmation tracks (RMS pose error, m) against the tracking noise.
 
     \b
     Example: dice-sweep fit drops.csv --config configs/square_drops.toml --effects corner_impulse --json fit.json

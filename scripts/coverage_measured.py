@@ -4,8 +4,9 @@ generator (tests/measured/independent.py), fitted with the true model, over many
     python scripts/coverage_measured.py [--seeds 20] [--tracks 90]
 
 Prints, per parameter, the share of seeds whose interval covers the true value with its exact
-95 % interval, the chance of so few hits if the coverage were 95 %, the mean error and the mean
-half-width. Needs the tests folder (a checkout), not only the package.
+95 % interval, the chance of so few hits if the coverage were 95 %, the mean error, the mean
+half-width and the RMS of the tracking noise's share (sd_noise); each set's line on stderr has
+its errors in those sds (z_noise). Needs the tests folder (a checkout), not only the package.
 """
 
 import argparse
@@ -47,8 +48,10 @@ def main():
             path = Path(folder) / f"d{seed}.csv"
             write_csv(path, simulate_drops(truth, args.tracks, 100 + seed, rate=500.0, noise=NOISE, drop_prob=0.01, glitch_prob=0.002))
             result = run_fit(path, parse_config(DECLARED_RIGID), seed=seed)
-            rows.append({name: (result["params"][name]["value"], *result["params"][name]["ci95"]) for name in TRUE})
-            print(json.dumps({"seed": seed, **rows[-1]}), file=sys.stderr)
+            rows.append({name: (result["params"][name]["value"], *result["params"][name]["ci95"], result["params"][name]["sd_noise"])
+                         for name in TRUE})
+            z = {name: (row[0] - TRUE[name]) / row[3] for name, row in rows[-1].items()}  # error in noise sds
+            print(json.dumps({"seed": seed, **rows[-1], "z_noise": z}), file=sys.stderr)
     summary = {}
     for name, true in TRUE.items():
         values = np.array([row[name] for row in rows])
@@ -58,7 +61,8 @@ def main():
                          "coverage_ci95": clopper_pearson(hits, len(rows)),
                          "p_value_if_95": float(binom.cdf(hits, len(rows), 0.95)),
                          "mean_error": float(np.mean(values[:, 0] - true)), "sd_of_estimates": float(np.std(values[:, 0])),
-                         "mean_half_width": float(np.mean(values[:, 2] - values[:, 1]) / 2)}
+                         "mean_half_width": float(np.mean(values[:, 2] - values[:, 1]) / 2),
+                         "rms_sd_noise": float(np.sqrt(np.mean(values[:, 3] ** 2)))}
     print(json.dumps(summary, indent=1))
     return 0
 
