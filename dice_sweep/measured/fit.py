@@ -36,7 +36,7 @@ from dice_sweep.measured.flights import segment_track
 from dice_sweep.physics import pack_params
 from dice_sweep.physics.kernel import sample_batch
 from dice_sweep.physics.layout import PATH_CUT, SAMPLE_RECORDS
-from dice_sweep.physics.params import IP_CONTINUE
+from dice_sweep.physics.params import FP_DRAG_MAX_STEP, FP_DRAG_TOL, IP_CONTINUE
 
 MIN_FLIGHT_FRAMES = 4  # a flight needs this many usable frames to carry a state of its own
 ROBUST_SCALE = 0.05  # R: soft-L1 scale; larger misfits (a bounce that went another way) count less
@@ -50,6 +50,12 @@ PARAM_STEP = 1e-4  # of a parameter's typical size (registry ``scale``)
 # is not a derivative, and the rows of that segment after the jump get none.
 JUMP = 1e-3
 MAX_FLIGHTS = 6  # flights per track: the first bounces; later ones are rocking on a corner
+# Flight with drag: the kernel's defaults hold each Runge-Kutta step to 1e-13 rho_max, which a
+# sweep needs and a fit to data noisy by ~1e-4 m does not. These moved the real drops' residuals
+# by at most 3.5e-10 m at drag 0.05 and 0.5 1/m and made them 3.3 and 2.6 times faster: the
+# air_drag candidate was the longest task of every round of diagnose (docs/dev/measured_speed.md).
+FIT_DRAG_TOL = 1e-11  # x rho_max
+FIT_DRAG_MAX_STEP = 5e-3  # s
 
 
 @dataclass(frozen=True)
@@ -217,6 +223,8 @@ class ShootingModel:
         horizon = float(times.max()) if times.size else 0.0
         cfg = kernel_config(self.cfg, self.spec, values, t_max=horizon + 1e-3)
         fpar, ipar = pack_params(cfg)
+        fpar[FP_DRAG_TOL] = FIT_DRAG_TOL
+        fpar[FP_DRAG_MAX_STEP] = FIT_DRAG_MAX_STEP
         ipar[IP_CONTINUE] = 1
         out = np.zeros((self.seg.times.size, 6))
         outcome = np.zeros(self.seg.count, np.int8)

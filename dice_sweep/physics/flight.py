@@ -3,7 +3,8 @@
 Without drag, flight is evaluated in closed form from the state at the start of the flight
 segment, never accumulated step by step. With quadratic drag (a = -c |v| v on the centre of
 mass) there is no closed form: the translation is integrated by classical Runge-Kutta steps
-with step-doubling error control (position error below DRAG_TOL R per step); the rotation
+with step-doubling error control (position error below fpar[FP_DRAG_TOL] rho_max per step, steps
+at most fpar[FP_DRAG_MAX_STEP]); the rotation
 stays exact (drag exerts no torque about the centre of mass).
 
 Contacts are found by conservative advancement: for every corner and surface the gap obeys a
@@ -29,6 +30,8 @@ from dice_sweep.physics.params import (
     CORNER_STRIDE,
     FP_CORNERS,
     FP_DRAG,
+    FP_DRAG_MAX_STEP,
+    FP_DRAG_TOL,
     FP_G,
     FP_RHO_MAX,
     FP_WALL,
@@ -43,8 +46,6 @@ NO_CONTACT = -1.0  # no contact before the horizon
 STALLED = -2.0  # the search did not converge within MAX_SEARCH_STEPS
 
 MAX_SEARCH_STEPS = 200000
-DRAG_TOL = 1e-13  # x R: position error allowed per Runge-Kutta step with drag
-DRAG_MAX_STEP = 1e-3  # s: longest Runge-Kutta step with drag
 DRAG_MIN_STEP = 1e-8  # x sqrt(R/g): shortest; below it the step is taken whatever its error
 REACH_MARGIN = 1e-6  # x rho_max: a surface farther than the die's reach by this cannot be touched
 
@@ -129,8 +130,9 @@ def advance_flight(s0, tau, fpar, out):
     work = np.empty((2, 6))
     cur = s0.copy()
     done = 0.0
-    h = DRAG_MAX_STEP
-    tol = DRAG_TOL * fpar[FP_RHO_MAX]
+    max_step = fpar[FP_DRAG_MAX_STEP]
+    h = max_step
+    tol = fpar[FP_DRAG_TOL] * fpar[FP_RHO_MAX]
     h_min = DRAG_MIN_STEP * math.sqrt(fpar[FP_RHO_MAX] / g)
     while done < tau:
         h = min(h, tau - done)
@@ -139,7 +141,7 @@ def advance_flight(s0, tau, fpar, out):
             continue
         cur[:] = out
         done += h
-        h = min(2.0 * h, DRAG_MAX_STEP)
+        h = min(2.0 * h, max_step)
     out[:] = cur
 
 
@@ -373,8 +375,9 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     tau = 0.0
     work = np.empty((2, 6))
     trial = np.empty(6)
-    h_ode = DRAG_MAX_STEP
-    ode_tol = DRAG_TOL * fpar[FP_RHO_MAX]
+    max_step = fpar[FP_DRAG_MAX_STEP]
+    h_ode = max_step
+    ode_tol = fpar[FP_DRAG_TOL] * fpar[FP_RHO_MAX]
     h_min = DRAG_MIN_STEP * math.sqrt(fpar[FP_RHO_MAX] / g)
     for _ in range(MAX_SEARCH_STEPS):
         # bound |a| over the next h_ode: speed can grow by at most g h_ode meanwhile
@@ -392,5 +395,5 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
         out[:] = trial
         tau += h
         if h == h_ode:
-            h_ode = min(2.0 * h_ode, DRAG_MAX_STEP)
+            h_ode = min(2.0 * h_ode, max_step)
     return STALLED

@@ -36,7 +36,9 @@ FP_INERTIA = 13  # I_com / M, m^2
 FP_RHO_MAX = 14  # largest distance from the COM to a corner, m
 FP_WINDOW = 15  # contact window: contacts arriving within it are one impact, s
 FP_CONTACT_TIME = 16  # flat_landing effect: contact duration over which a second corner shares the impact, s
-FP_CORNERS = 17  # then (rho_k, cos gamma_k, sin gamma_k) for k = 0..n-1
+FP_DRAG_TOL = 17  # x rho_max: position error allowed per Runge-Kutta step of a flight with drag
+FP_DRAG_MAX_STEP = 18  # s: longest Runge-Kutta step of a flight with drag
+FP_CORNERS = 19  # then (rho_k, cos gamma_k, sin gamma_k) for k = 0..n-1
 CORNER_STRIDE = 3
 
 # ipar indices
@@ -46,6 +48,11 @@ IP_METHOD = 2  # integrator: METHOD_EVENT or METHOD_FIXED_STEP
 IP_MAX_EVENTS = 3  # event budget per roll
 IP_CONTINUE = 4  # 1: keep simulating after the decision, until rest or t_max (for fitting)
 N_IPAR = 5
+
+# Flight with drag (physics/flight.py): the defaults keep a sweep's flights exact to round-off;
+# a fit, whose data are noisy by ~1e-4 m, may pass coarser ones (fpar, not config: no user sets them)
+DRAG_TOL = 1e-13  # x rho_max
+DRAG_MAX_STEP = 1e-3  # s
 
 
 
@@ -79,6 +86,8 @@ def pack_params(cfg):
     fpar[FP_WINDOW] = getattr(cfg.contact, "window", DEFAULT_CONTACT_WINDOW)
     fpar[FP_CONTACT_TIME] = contact_time
     fpar[FP_DRAG] = drag
+    fpar[FP_DRAG_TOL] = DRAG_TOL
+    fpar[FP_DRAG_MAX_STEP] = DRAG_MAX_STEP
     fpar[FP_KSR] = k_speed
     fpar[FP_COM_X] = dx
     fpar[FP_COM_Y] = dy

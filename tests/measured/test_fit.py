@@ -84,3 +84,25 @@ def test_the_noise_covariance_matches_refits_of_simulated_noise(tmp_path):
     ratio = np.std(refits, axis=0) / first_order
     print("refit sd / first-order sd:", {name: round(float(r), 2) for name, r in zip(fit.free, ratio)})  # docs/measured_method.md quotes these (-s)
     assert np.all((ratio > 0.7) & (ratio < 1.4)), dict(zip(fit.free, ratio))
+
+
+def test_the_fits_coarser_drag_steps_move_no_residual_by_a_nanometre(segments, monkeypatch):
+    """The fit runs drag at FIT_DRAG_TOL and FIT_DRAG_MAX_STEP (3x faster on the real drops);
+    on every row of the independent generator's drops, at drag 0.5 1/m, the residuals stay
+    within 1e-9 m of the kernel's default steps, and the fit's values do reach the kernel."""
+    from dice_sweep.physics import params as kernel_params
+
+    cfg, seg = segments
+    spec = shooting.ModelSpec.of(cfg).with_effect("air_drag")
+    values = {**TRUE_COEFFICIENTS, "air_drag": 0.5}
+    model = shooting.ShootingModel(cfg, spec, seg)
+    seen = []
+    kernel = shooting.sample_batch
+    monkeypatch.setattr(shooting, "sample_batch", lambda fpar, *rest: (seen.append(fpar.copy()), kernel(fpar, *rest)))
+    coarse = model.residuals(values, seg.guess)
+    assert seen[-1][kernel_params.FP_DRAG_TOL] == shooting.FIT_DRAG_TOL
+    assert seen[-1][kernel_params.FP_DRAG_MAX_STEP] == shooting.FIT_DRAG_MAX_STEP
+    monkeypatch.setattr(shooting, "FIT_DRAG_TOL", kernel_params.DRAG_TOL)
+    monkeypatch.setattr(shooting, "FIT_DRAG_MAX_STEP", kernel_params.DRAG_MAX_STEP)
+    fine = model.residuals(values, seg.guess)
+    assert np.abs(coarse - fine).max() < 1e-9

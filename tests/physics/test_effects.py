@@ -16,7 +16,9 @@ from dice_sweep.physics.kernel import (
     decided_side,
     shift_reference,
 )
-from dice_sweep.physics.params import FP_INERTIA
+from dice_sweep.measured.fit import FIT_DRAG_MAX_STEP, FIT_DRAG_TOL
+from dice_sweep.physics.flight import advance_flight
+from dice_sweep.physics.params import FP_DRAG_MAX_STEP, FP_DRAG_TOL, FP_INERTIA
 from dice_sweep.roll import roll_config, sample_path
 from tests.physics.conftest import TABLE1_RADIUS, make_config, make_params, random_states, run_batch, run_one
 
@@ -209,3 +211,38 @@ def test_flat_landing_while_sliding_slides_to_rest():
     fall = math.sqrt(2 * 1e-10 / G)
     assert out[0, 0] == pytest.approx(vx * fall + vx**2 / (2 * mu * G), rel=1e-3)
     assert out[0, 3] == 0.0
+
+
+def _drag_flight_reference(state, c, tau):
+    """Flight with a = -g - c |v| v by SciPy's DOP853 at rtol 1e-13: an integrator that is not
+    the kernel's."""
+    from scipy.integrate import solve_ivp
+
+    def rates(_, u):
+        speed = math.hypot(u[2], u[3])
+        return [u[2], u[3], -c * speed * u[2], -G - c * speed * u[3]]
+
+    sol = solve_ivp(rates, (0.0, tau), [state[0], state[1], state[3], state[4]], method="DOP853", rtol=1e-13, atol=1e-15)
+    return sol.y[:2, -1]
+
+
+@pytest.mark.parametrize("c", [0.05, 0.5, 2.0])
+def test_drag_flight_at_the_fits_tolerance_stays_within_a_nanometre(c):
+    """The fit runs flights with drag at coarser Runge-Kutta steps than a sweep (FIT_DRAG_TOL,
+    FIT_DRAG_MAX_STEP in fpar): the centre after 0.3 s stays within 1e-9 m of an independent
+    integrator at both settings, and a far coarser setting is visibly worse (fpar is read)."""
+    state = np.array([0.0, 0.6, 0.3, 1.5, 2.0, 12.0])
+    tau = 0.3
+    expected = _drag_flight_reference(state, c, tau)
+    out = np.empty(6)
+    for tol, max_step in [(None, None), (FIT_DRAG_TOL, FIT_DRAG_MAX_STEP)]:
+        fpar, _ = make_params(air_drag=c)
+        if tol is not None:
+            fpar[FP_DRAG_TOL], fpar[FP_DRAG_MAX_STEP] = tol, max_step
+        advance_flight(state, tau, fpar, out)
+        assert np.abs(out[:2] - expected).max() < 1e-9, (tol, out[:2] - expected)
+        assert math.isclose(out[2], state[2] + state[5] * tau, rel_tol=1e-12)  # rotation: omega constant
+    fpar, _ = make_params(air_drag=c)
+    fpar[FP_DRAG_TOL], fpar[FP_DRAG_MAX_STEP] = 1e-2, tau  # one step
+    advance_flight(state, tau, fpar, out)
+    assert np.abs(out[:2] - expected).max() > 1e-9
