@@ -361,6 +361,24 @@ class FitResult:
     at_bound: dict  # name -> bool
 
 
+# Marquardt damping scales each parameter's step by its own curvature; a parameter the frames
+# hardly see (friction 0.5 with beta_tangential 0: hardly an impulse reaches the cap, its curvature
+# 1e-19 of beta_normal's) then took steps of 1e5 from finite-difference noise in its gradient,
+# every trial was clipped to its bound and worse, and the fit stopped at its start values as
+# "converged" (one of 20 hexagon sets at 1000 Hz of scripts/coverage_measured.py --sides 6;
+# tests/measured/test_fit.py).
+# Its curvature is floored at this share of the largest, in units of the registry's scales.
+PARAM_DAMPING_FLOOR = 1e-6
+
+
+def _damping_floor(hpp, scales):
+    """Least curvature (per parameter, its own units) that damps a parameter's step."""
+    if not scales.size:
+        return np.zeros(0)
+    scaled = np.diag(hpp) * scales**2
+    return np.maximum(PARAM_DAMPING_FLOOR * scaled.max(), 1e-30) / scales**2
+
+
 def relative_gain(cost, new_cost):
     return (cost - new_cost) / max(cost, 1e-300)
 
@@ -378,11 +396,13 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
     small = 0
     restarted = False
     bounds = [registry.param(name).bounds_of(model.cfg) for name in free]
+    scales = np.array([registry.param(name).scale for name in free])
     for iterations in range(1, max_iterations + 1):
         weight = _robust_weights(residual, scale)
         jac_p, jac_s = _jacobians(model, values, states, residual, free)
         lin = Linearisation(residual, weight, jac_p, jac_s)
         hss, hsp, hpp, gs, gp = _normal_blocks(lin, starts)
+        floor_p = _damping_floor(hpp.sum(axis=0), scales)
         improved = False
         for _ in range(16):
             inv = _damped_inverse(hss, damping)
@@ -392,7 +412,7 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
                 reduced = hpp.sum(axis=0) - np.sum(hsp.transpose(0, 2, 1) @ solved, axis=0)
                 grad = gp.sum(axis=0) - np.einsum("sjp,sj->p", solved, gs)
                 diag = np.diag(reduced).copy()
-                reduced = reduced + np.diag(damping * np.maximum(diag, 1e-30) + 1e-30)
+                reduced = reduced + np.diag(damping * np.maximum(diag, floor_p) + 1e-30)
                 step_p = -np.linalg.solve(reduced, grad)
             step_s = -(inv @ (gs + hsp @ step_p)[:, :, None])[:, :, 0]
             trial_values = dict(values)

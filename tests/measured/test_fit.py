@@ -106,3 +106,33 @@ def test_the_fits_coarser_drag_steps_move_no_residual_by_a_nanometre(segments, m
     monkeypatch.setattr(shooting, "FIT_DRAG_MAX_STEP", kernel_params.DRAG_MAX_STEP)
     fine = model.residuals(values, seg.guess)
     assert np.abs(coarse - fine).max() < 1e-9
+
+
+def test_a_parameter_the_frames_hardly_see_does_not_freeze_the_fit(tmp_path, monkeypatch):
+    """Caught on hexagons at 1000 Hz: with beta_tangential 0, friction 0.5 caps no impulse, its
+    curvature was 1e-19 of beta_normal's, Marquardt damping let finite-difference noise send it
+    1e5 out, every trial was clipped to its bound and worse, and the fit stopped at its start
+    values as converged. With the curvature floored (PARAM_DAMPING_FLOOR) it moves off them."""
+    radius = 0.025
+    truth = Truth(sides=6, circumradius=radius, contact="rigid", beta_normal=0.4, beta_tangential=0.0, friction=0.3)
+    path = tmp_path / "hexagon.csv"
+    write_csv(path, simulate_drops(truth, 60, 119, rate=1000.0, noise=NOISE))
+    cfg = parse_config(DECLARED_RIGID.replace("sides = 4", "sides = 6").replace(f"circumradius = {RADIUS!r}", f"circumradius = {radius!r}"))
+    prepared = shooting.prepare_tracks(load_tracks(path, sides=6, circumradius=radius), cfg, noise=np.array([NOISE[0], NOISE[0], NOISE[1]]))
+    seg = shooting.Segments(prepared, cfg.world.g)
+    start = shooting.start_values(cfg, shooting.ModelSpec.of(cfg))
+    fit = shooting.fit_spec(cfg, shooting.ModelSpec.of(cfg), seg)
+    assert fit.params["beta_normal"] > start["beta_normal"] + 0.05  # 0.384 (truth 0.4; a local optimum, see docs)
+    monkeypatch.setattr(shooting, "PARAM_DAMPING_FLOOR", 0.0)
+    frozen = shooting.fit_spec(cfg, shooting.ModelSpec.of(cfg), seg)
+    assert frozen.params["beta_normal"] == pytest.approx(start["beta_normal"], abs=1e-6)
+    assert fit.cost < 0.5 * frozen.cost
+
+
+def test_the_damping_floor_is_a_share_of_the_largest_scaled_curvature():
+    hpp = np.diag([4.0, 1e-19, 2.0])
+    scales = np.array([0.1, 0.1, 1e-3])
+    floor = shooting._damping_floor(hpp, scales)
+    largest = max(4.0 * 0.1**2, 2.0 * 1e-6)  # beta-like 0.04 beats the third's 2e-6
+    assert floor == pytest.approx(shooting.PARAM_DAMPING_FLOOR * largest / scales**2)
+    assert shooting._damping_floor(np.zeros((0, 0)), np.zeros(0)).size == 0
