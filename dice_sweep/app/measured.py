@@ -9,6 +9,7 @@ import numpy as np
 
 from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.executor import default_workers
 from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.calibrate import CalibrationResult, calibrate
@@ -62,7 +63,7 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
     declared = registry.declared_effects(cfg)
     extra = tuple(e for e in effects if e not in declared)
     spec = shooting.ModelSpec.of(cfg, extra)
-    fit = shooting.fit_spec(cfg, spec, seg_select)
+    fit, starts = loop.fit_from_starts(cfg, spec, seg_select, select_set, workers=default_workers())
     lin = shooting.linearise(cfg, fit, seg_select)
     red = loop._reduce(lin, seg_select)
     draws, params = loop.parameter_intervals(fit, red, seg_select, cfg, rng, loop.residual_sigmas(noise, cfg))
@@ -80,6 +81,7 @@ def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=N
         "train_tracks": len(select),
         "test_tracks": len(confirm),
         "converged": fit.converged,
+        "starts": starts,
         "angle_reading": trackset.angle_note,
         "glitch_frames": trackset.glitch_count,
         "data": {"path": str(data_path)},
