@@ -329,9 +329,9 @@ def measured_starts(trackset, cfg, spec):
     corner = "corner_impulse" in spec.declared + spec.effects
     sources = {"beta_normal": "corner_normal" if corner else "beta_normal",
                "beta_tangential": "corner_tangential" if corner else "beta_tangential"}
-    starts = {}
     if result.values(sources["beta_normal"], "first_corner").size < MIN_CALIBRATED_IMPACTS:
         return {}
+    starts = {}
     for name, source in sources.items():
         values = result.values(source, "first_corner")
         if name in names and values.size >= MIN_CALIBRATED_IMPACTS:
@@ -902,7 +902,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         if not accepted:
             pairs = _pairs(results)
             singles = {r["effect"]: r["fit"] for r in results}
-            tested = _map(_try_pair, [((cfg, current, seg_select, fold, e_current, floor, bootstrap, sigmas, seed, singles), p) for p in pairs], workers)
+            tested = _map(_try_pair, [((*job, singles), p) for p in pairs], workers)
             # the pairs are more comparisons, chosen after seeing the singles: a stricter bound
             pair_threshold = max(threshold, sidak_bound(len(results) + len(pairs)))
             for pair in tested:

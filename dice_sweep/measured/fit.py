@@ -402,14 +402,15 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
         jac_p, jac_s = _jacobians(model, values, states, residual, free)
         lin = Linearisation(residual, weight, jac_p, jac_s)
         hss, hsp, hpp, gs, gp = _normal_blocks(lin, starts)
-        floor_p = _damping_floor(hpp.sum(axis=0), scales)
+        hpp_total = hpp.sum(axis=0)
+        floor_p = _damping_floor(hpp_total, scales)
         improved = False
         for _ in range(16):
             inv = _damped_inverse(hss, damping)
             step_p = np.zeros(len(free))
             if free:
                 solved = inv @ hsp  # (segments, 6, p)
-                reduced = hpp.sum(axis=0) - np.sum(hsp.transpose(0, 2, 1) @ solved, axis=0)
+                reduced = hpp_total - np.sum(hsp.transpose(0, 2, 1) @ solved, axis=0)
                 grad = gp.sum(axis=0) - np.einsum("sjp,sj->p", solved, gs)
                 diag = np.diag(reduced).copy()
                 reduced = reduced + np.diag(damping * np.maximum(diag, floor_p) + 1e-30)

@@ -120,6 +120,13 @@ def drag_step(s, h, g, c, out, work):
 
 
 @numba.njit(cache=True)
+def drag_step_limits(fpar):
+    """(longest step s, error allowed per step m, shortest step s) of a flight with drag."""
+    return (fpar[FP_DRAG_MAX_STEP], fpar[FP_DRAG_TOL] * fpar[FP_RHO_MAX],
+            DRAG_MIN_STEP * math.sqrt(fpar[FP_RHO_MAX] / fpar[FP_G]))
+
+
+@numba.njit(cache=True)
 def advance_flight(s0, tau, fpar, out):
     """State after a flight of ``tau`` seconds (with drag if any); for sampling paths."""
     g = fpar[FP_G]
@@ -130,10 +137,8 @@ def advance_flight(s0, tau, fpar, out):
     work = np.empty((2, 6))
     cur = s0.copy()
     done = 0.0
-    max_step = fpar[FP_DRAG_MAX_STEP]
+    max_step, tol, h_min = drag_step_limits(fpar)
     h = max_step
-    tol = fpar[FP_DRAG_TOL] * fpar[FP_RHO_MAX]
-    h_min = DRAG_MIN_STEP * math.sqrt(fpar[FP_RHO_MAX] / g)
     while done < tau:
         h = min(h, tau - done)
         if drag_step(cur, h, g, c, out, work) > tol and h > h_min:
@@ -375,10 +380,8 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     tau = 0.0
     work = np.empty((2, 6))
     trial = np.empty(6)
-    max_step = fpar[FP_DRAG_MAX_STEP]
+    max_step, ode_tol, h_min = drag_step_limits(fpar)
     h_ode = max_step
-    ode_tol = fpar[FP_DRAG_TOL] * fpar[FP_RHO_MAX]
-    h_min = DRAG_MIN_STEP * math.sqrt(fpar[FP_RHO_MAX] / g)
     for _ in range(MAX_SEARCH_STEPS):
         # bound |a| over the next h_ode: speed can grow by at most g h_ode meanwhile
         speed = math.hypot(out[3], out[4]) + g * h_ode
