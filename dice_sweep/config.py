@@ -98,11 +98,7 @@ class Die:
 
 
 @dataclass(frozen=True)
-class Contact:
-    """Contact law: ``model`` ("paper" or "rigid"), ``beta_normal`` in [0, 1],
-    ``beta_tangential`` in [-1, 1], Coulomb ``friction`` coefficient in [0, inf] (inf: no cap),
-    ``window`` (s) in [0, 1e-3]: contacts arriving within it are one impact."""
-
+class _ContactBase:
     model: str
     beta_normal: float
     beta_tangential: float
@@ -110,35 +106,37 @@ class Contact:
     window: float = DEFAULT_CONTACT_WINDOW
 
 
-@dataclass(frozen=True)
-class Effects:
-    """Optional physics, all off by default (docs/physics.md).
+def _registry_fields(section):
+    """(name, type, field) of every key the effect registry declares in ``section``, in order."""
+    keys = effect_registry.config_key_specs().get(section, {}).values()
+    return [(key.name, str if key.choices else tuple if key.length else float, field(default=key.default)) for key in keys]
 
-    ``air_drag`` c (1/m): a = -c |v| v on the centre of mass; ``com_offset`` (dx, dy) (m): centre
-    of mass offset from the geometric centre in the body frame (a loaded die); ``speed_restitution``
-    k (s/m): beta_normal / (1 + k |u_n|); ``contact_time`` (s): a second corner arriving within it
-shares the impact (a flat landing). The keys are declared in dice_sweep/effects.py.
+
+def _with_registry_fields(base, name, section, doc):
+    """A frozen dataclass ``name``: ``base``'s fields (None: none), then the registry's keys of
+    ``section``. The registry (dice_sweep/effects.py) is the one place an effect's keys are
+    declared; the section's dataclass is derived from it, so adding an effect adds no field here.
     """
+    own = [(f.name, f.type, f) for f in dataclasses.fields(base)] if base is not None else []
+    derived = dataclasses.make_dataclass(name, own + _registry_fields(section), frozen=True)
+    derived.__module__ = __name__  # pickling (worker pools) finds it here, as a module global
+    keys = effect_registry.config_key_specs().get(section, {}).values()
+    derived.__doc__ = doc + (" Keys from the effect registry: " + "; ".join(
+        f"``{key.name}`` ({key.unit or 'one of ' + ', '.join(key.choices)}){': ' + key.help if key.help else ''}" for key in keys
+    ) + "." if keys else "")
+    return derived
 
-    air_drag: float
-    com_offset: tuple
-    speed_restitution: float
-    contact_time: float = 0.0
 
-
-@dataclass(frozen=True)
-class Tracking:
-    """How a tracker saw the die (measured drops only; the kernel does not read it).
-
-    ``angle_offset`` (rad): file angle = phi + offset; ``time_scale`` (1): file t = scale * true
-    t; ``length_scale`` (1): file x, y = scale * true x, y; ``table_offset`` (m): file y = y +
-    offset. Keys declared in dice_sweep/effects.py.
-    """
-
-    angle_offset: float = 0.0
-    time_scale: float = 1.0
-    length_scale: float = 1.0
-    table_offset: float = 0.0
+Contact = _with_registry_fields(
+    _ContactBase, "Contact", "contact",
+    """Contact law: ``model`` ("paper" or "rigid"), ``beta_normal`` in [0, 1],
+    ``beta_tangential`` in [-1, 1], Coulomb ``friction`` coefficient in [0, inf] (inf: no cap),
+    ``window`` (s) in [0, 1e-3]: contacts arriving within it are one impact.""",
+)
+Effects = _with_registry_fields(None, "Effects", "effects", "Optional physics, all off by default (docs/effects.md).")
+Tracking = _with_registry_fields(
+    None, "Tracking", "tracking", "How a tracker saw the die (measured drops only; the kernel does not read it)."
+)
 
 
 @dataclass(frozen=True)
@@ -299,10 +297,11 @@ _SECTION_SPECS = {
     },
 }
 for _section, _keys in effect_registry.config_key_specs().items():
-    _SECTION_SPECS[_section] = {
-        key.name: _Spec(float, key.default, low=key.low, high=key.high, low_open=key.low_open, unit=key.unit, length=key.length)
+    _SECTION_SPECS.setdefault(_section, {}).update({
+        key.name: _Spec(str, key.default, choices=key.choices) if key.choices else
+        _Spec(float, key.default, low=key.low, high=key.high, low_open=key.low_open, unit=key.unit, length=key.length)
         for key in _keys.values()
-    }
+    })
 _SECTION_CLASSES = {
     "die": Die,
     "contact": Contact,
@@ -592,6 +591,14 @@ def _build(raw, checker):
     apothem = float(geometry.apothem(die.sides, die.circumradius))
     if math.hypot(*offset) >= apothem:
         raise checker.error("effects.com_offset", f"{list(offset)!r} m is not inside the die (allowed: |offset| < apothem = {_fmt(apothem)} m)")
+    ratio = float(geometry.inertia_ratio(die.sides))
+    inertia = sections["effects"].inertia
+    if inertia * ratio * die.circumradius**2 - math.hypot(*offset) ** 2 <= 0.0 or inertia * ratio > 1.0:
+        high = 1.0 / ratio
+        raise checker.error("effects.inertia", f"{inertia!r} is outside the allowed range ({_fmt(math.hypot(*offset) ** 2 / (ratio * die.circumradius**2))}, {high:.6g}] "
+                            f"for this die (above: more than all the mass at the corners; below: no inertia left about the centre of mass)")
+    if sections["effects"].corner_radius >= apothem:
+        raise checker.error("effects.corner_radius", f"{sections['effects'].corner_radius!r} m is outside the allowed range [0, {_fmt(apothem)}) m (below the apothem)")
     grid = _grid(checker.table(raw, ("grid",), required=False), checker)
     _check_starts_clear(die, walls, sections["initial"], grid, checker)
     return Config(**sections, grid=grid, source=checker.source)

@@ -28,7 +28,14 @@ __all__ = ["ConfigKey", "Param", "Effect", "EFFECTS", "BASE_PARAMS", "effect", "
 
 @dataclass(frozen=True)
 class ConfigKey:
-    """A config key an effect owns: ``section.name`` with its default, range and unit."""
+    """A config key an effect owns: ``section.name`` with its default, range and unit.
+
+    ``slot`` names the kernel parameter it fills (an ``fpar`` index constant ``FP_*``, or an
+    ``ipar`` one ``IP_*`` for a choice, packed as the index of the value in ``choices``); an
+    array key fills ``length`` consecutive slots from there. Empty: the kernel does not read
+    the key itself (a measurement key, or one that enters a derived slot, as inertia enters
+    FP_INERTIA). ``help`` is its text in docs and config docstrings.
+    """
 
     section: str
     name: str
@@ -38,6 +45,13 @@ class ConfigKey:
     high: float = math.inf
     low_open: bool = False
     length: int = 0  # > 0: an array of this many numbers
+    choices: tuple = ()  # a string key: the values it accepts
+    slot: str = ""
+    help: str = ""
+
+    @property
+    def dotted(self):
+        return f"{self.section}.{self.name}"
 
 
 @dataclass(frozen=True)
@@ -112,7 +126,7 @@ class Effect:
     summary: str
     params: tuple = ()
     config_keys: tuple = ()  # ConfigKey entries this effect adds to the config schema
-    switch: tuple = ()  # (key, value) set when the effect is added, e.g. contact.model = rigid
+    switch: tuple = ()  # ((key, value), ...) set when the effect is added, e.g. contact.model = rigid
     measurement: Measurement = None  # measurement effects: how the tracker maps the motion
     # effects no motion can tell from this one (the loop names them together)
     equivalent: tuple = ()
@@ -121,10 +135,15 @@ class Effect:
 
     def is_declared(self, cfg):
         """Whether a config already has this effect on (it is then not a candidate)."""
-        if self.switch:
-            key, value = self.switch
+        if self.switch:  # the last pair is the one that tells this effect (the first may be shared)
+            key, value = self.switch[-1]
             return get_key(cfg, key) == value
         return any(get_key(cfg, p.key) != p.null_value(cfg) for p in self.params)
+
+
+def _uniform_inertia_ratio(sides):
+    """Eq. 25: I / (M R^2) of a uniform regular n-gon plate about its centre."""
+    return math.sin(math.pi / sides) ** 2 / 6.0 + math.cos(math.pi / sides) ** 2 / 2.0
 
 
 def _apothem(cfg):
@@ -139,6 +158,9 @@ def _declared_g(cfg):
     return cfg.world.g
 
 
+FRICTION_RULES = ("aimed", "sliding", "exact")  # contact.friction_rule; index = the kernel's code
+RESTITUTION_LAWS = ("newton", "energetic")  # contact.restitution; index = the kernel's code
+
 # beta_normal and beta_tangential are freed in every fit: the declared model's own parameters
 BASE_PARAMS = (
     Param("beta_normal", "1", "contact.beta_normal", _fixed(0.0, 1.0), math.nan, (), 0.1),
@@ -149,7 +171,7 @@ EFFECTS = (
     Effect(
         "corner_impulse", "contact",
         "the impulse acts at the touching corner (the rigid law) instead of the paper's lever R below the centre",
-        switch=("contact.model", "rigid"),
+        switch=(("contact.model", "rigid"),),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss by more than the flights the states were fitted to",
     ),
@@ -163,7 +185,7 @@ EFFECTS = (
     Effect(
         "air_drag", "flight", "quadratic air drag on the centre of mass, a = -c |v| v",
         params=(Param("air_drag", "1/m", "effects.air_drag", _fixed(0.0, 5.0), 0.0, (0.05, 0.5), 0.05),),
-        config_keys=(ConfigKey("effects", "air_drag", 0.0, "1/m", low=0.0),),
+        config_keys=(ConfigKey("effects", "air_drag", 0.0, "1/m", low=0.0, slot="FP_DRAG"),),
         signature="flight_deceleration",
         signature_note="median deceleration of the speed along the motion left in free flight",
     ),
@@ -173,14 +195,14 @@ EFFECTS = (
             Param("com_dx", "m", "effects.com_offset[0]", lambda cfg: (-0.5 * _apothem(cfg), 0.5 * _apothem(cfg)), 0.0, (0.002, -0.002), 1e-3),
             Param("com_dy", "m", "effects.com_offset[1]", lambda cfg: (-0.5 * _apothem(cfg), 0.5 * _apothem(cfg)), 0.0, (0.002, -0.002), 1e-3),
         ),
-        config_keys=(ConfigKey("effects", "com_offset", (0.0, 0.0), "m", length=2),),
+        config_keys=(ConfigKey("effects", "com_offset", (0.0, 0.0), "m", length=2, slot="FP_COM_X"),),
         signature="flight_wobble_at_spin",
         signature_note="amplitude of the free-flight residual of the centre at the spin angle (cos phi, sin phi)",
     ),
     Effect(
         "speed_restitution", "contact", "restitution that falls with impact speed, beta_normal / (1 + k |u_n|)",
         params=(Param("speed_restitution", "s/m", "effects.speed_restitution", _fixed(0.0, 5.0), 0.0, (0.2, 1.0), 0.1),),
-        config_keys=(ConfigKey("effects", "speed_restitution", 0.0, "s/m", low=0.0),),
+        config_keys=(ConfigKey("effects", "speed_restitution", 0.0, "s/m", low=0.0, slot="FP_KSR"),),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss, more after fast impacts than after slow ones",
     ),
@@ -189,9 +211,54 @@ EFFECTS = (
         "a second corner arriving within the contact time after the first shares the impact: the two-contact impulse "
         "takes the share 1 - delay / contact_time, the first corner's alone the rest",
         params=(Param("contact_time", "s", "effects.contact_time", _fixed(0.0, 1e-3), 0.0, (1e-4, 3e-4, 9e-4), 1e-5),),
-        config_keys=(ConfigKey("effects", "contact_time", 0.0, "s", low=0.0, high=1e-3),),
+        config_keys=(ConfigKey("effects", "contact_time", 0.0, "s", low=0.0, high=1e-3, slot="FP_CONTACT_TIME"),),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss, more after landings near flat than after tilted ones",
+    ),
+    Effect(
+        "inertia", "contact",
+        "the moment of inertia about the centre of mass is a factor times the uniform plate's (eq. 25): a die with pips, "
+        "a hollow or a plated die; it acts at impacts and in pivots (free flight conserves the spin either way)",
+        params=(Param("inertia", "1", "effects.inertia", lambda cfg: (0.3, min(2.0, 0.999 / _uniform_inertia_ratio(cfg.die.sides))), 1.0, (0.9, 1.1), 0.05),),
+        config_keys=(ConfigKey("effects", "inertia", 1.0, "1", low=0.0, low_open=True, high=3.0,
+                               help="I_com / (M R^2) over eq. 25's value; at most 1 / eq. 25's ratio (all mass at the corners)"),),
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss: the spin after an impact off in proportion to the lever",
+    ),
+    Effect(
+        "sliding_friction", "contact",
+        "the rigid law's Coulomb cap takes the textbook sliding branch: a capped tangential impulse opposes the incoming slip "
+        "(instead of lying on the side of the impulse aimed at the restitution target)",
+        switch=(("contact.model", "rigid"), ("contact.friction_rule", "sliding")),
+        config_keys=(
+            ConfigKey("contact", "friction_rule", "aimed", "", choices=FRICTION_RULES, slot="IP_FRICTION_RULE",
+                      help="how the rigid law meets the Coulomb cap: aimed (the cone's edge on the side of the aimed impulse), "
+                           "sliding (opposing the incoming slip), exact (Routh's integration over the impact)"),
+            ConfigKey("contact", "restitution", "newton", "", choices=RESTITUTION_LAWS, slot="IP_RESTITUTION",
+                      help="restitution of the exact impact: newton (kinematic, u_n' = -beta_normal u_n) or energetic "
+                           "(Stronge: the restitution phase's work is beta_normal^2 the compression's)"),
+        ),
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss after sliding impacts whose slip the normal impulse reverses",
+    ),
+    Effect(
+        "exact_coulomb", "contact",
+        "the exact Coulomb impact at the touching corner(s): the contact velocity integrated over the normal impulse "
+        "(Routh's method) with slip, stick and slip reversal, Newton restitution; no tangential restitution",
+        switch=(("contact.model", "rigid"), ("contact.friction_rule", "exact")),
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss after impacts that stick or reverse their slip",
+    ),
+    Effect(
+        "rounded_corners", "contact",
+        "corners rounded to radius r (the sides keep the apothem): contact on the arc below its centre, so the lever, "
+        "the rolling pivot and the barrier of each side change",
+        params=(Param("corner_radius", "m", "effects.corner_radius", lambda cfg: (0.0, 0.5 * _apothem(cfg)), 0.0,
+                      lambda cfg: (0.03 * cfg.die.circumradius, 0.1 * cfg.die.circumradius), 1e-3),),
+        config_keys=(ConfigKey("effects", "corner_radius", 0.0, "m", low=0.0, slot="FP_CORNER_RADIUS",
+                               help="radius of the rounded corners; below the apothem"),),
+        signature="impact_prediction",
+        signature_note="frames predicted through an impact miss: impacts a little later and lower, with a shorter lever",
     ),
     Effect(
         "gravity", "flight", "the acceleration of free fall differs from the declared [world] g",
@@ -305,8 +372,8 @@ def with_values(cfg, effect_names, values):
     """The config with ``effect_names`` switched on and fitted ``values`` (name -> value) set."""
     for name in effect_names:
         entry = _BY_NAME[name]
-        if entry.switch:
-            cfg = set_key(cfg, *entry.switch)
+        for key, value in entry.switch:
+            cfg = set_key(cfg, key, value)
     for name, value in values.items():
         cfg = set_key(cfg, _PARAMS[name].key, float(value))
     return cfg
@@ -350,7 +417,7 @@ def markdown_table():
     lines = ["| effect | kind | what it changes | parameters (unit, null value) | config key | residual signature |", "|---|---|---|---|---|---|"]
     for e in EFFECTS:
         params = "; ".join(f"{p.name} ({p.unit}, null {p.null if not callable(p.null) else 'the declared value'})" for p in e.params) or "-"
-        key = f"`{e.switch[0]} = \"{e.switch[1]}\"`" if e.switch else ", ".join(f"`{p.key}`" for p in e.params)
+        key = ", ".join([f"`{k} = \"{v}\"`" for k, v in e.switch] + [f"`{p.key}`" for p in e.params])
         summary = e.summary.replace("|", "\\|")  # a pipe would end the table cell
         if e.equivalent:
             summary += f" (no motion tells it from {', '.join(e.equivalent)})"

@@ -7,6 +7,7 @@ cost. No numba here: anything may import this module without compiling. The para
 """
 
 from dice_sweep.config import CONTACT_MODELS, INTEGRATOR_METHODS
+from dice_sweep.effects import FRICTION_RULES, RESTITUTION_LAWS
 
 # --- a roll's initial state (geometric centre, SI) -----------------------------------------
 STATE_COLUMNS = ("x0", "y0", "phi0", "vx0", "vy0", "omega0")
@@ -61,3 +62,8 @@ MODEL_RIGID = MODELS["rigid"]
 METHODS = {name: code for code, name in enumerate(INTEGRATOR_METHODS)}
 METHOD_EVENT = METHODS["event"]
 METHOD_FIXED_STEP = METHODS["fixed_step"]
+FRICTION_RULE_AIMED = FRICTION_RULES.index("aimed")  # ipar[IP_FRICTION_RULE]: the cone's edge on the aimed impulse's side
+FRICTION_RULE_SLIDING = FRICTION_RULES.index("sliding")  # the textbook branch: opposing the incoming slip
+FRICTION_RULE_EXACT = FRICTION_RULES.index("exact")  # Routh's integration over the normal impulse
+RESTITUTION_NEWTON = RESTITUTION_LAWS.index("newton")  # ipar[IP_RESTITUTION]
+RESTITUTION_ENERGETIC = RESTITUTION_LAWS.index("energetic")

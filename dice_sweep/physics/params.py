@@ -14,11 +14,12 @@ import math
 
 import numpy as np
 
-from dice_sweep.config import DEFAULT_CONTACT_WINDOW, MAX_EVENTS
+from dice_sweep import effects as effect_registry
+from dice_sweep.config import MAX_EVENTS
 from dice_sweep.geometry import inertia_ratio
 from dice_sweep.physics.layout import METHODS, MODELS
 
-# fpar indices (SI units)
+# fpar indices (SI units): the base slots; every effect's slots follow, from the registry
 FP_R = 0  # circumradius, m
 FP_G = 1  # gravitational acceleration, m/s^2
 FP_BN = 2  # beta_normal, 1
@@ -28,18 +29,12 @@ FP_DT = 5  # fixed_step time step, s
 FP_TMAX = 6  # simulated time limit, s
 FP_ALPHA = 7  # I_com / (M R^2), 1
 FP_MU = 8  # Coulomb friction coefficient (inf: no cap)
-FP_DRAG = 9  # quadratic air drag c, 1/m
-FP_KSR = 10  # speed-dependent restitution k, s/m
-FP_COM_X = 11  # centre-of-mass offset from the geometric centre, body frame, m
-FP_COM_Y = 12
-FP_INERTIA = 13  # I_com / M, m^2
-FP_RHO_MAX = 14  # largest distance from the COM to a corner, m
-FP_WINDOW = 15  # contact window: contacts arriving within it are one impact, s
-FP_CONTACT_TIME = 16  # flat_landing effect: contact duration over which a second corner shares the impact, s
-FP_DRAG_TOL = 17  # x rho_max: position error allowed per Runge-Kutta step of a flight with drag
-FP_DRAG_MAX_STEP = 18  # s: longest Runge-Kutta step of a flight with drag
-FP_CORNERS = 19  # then (rho_k, cos gamma_k, sin gamma_k) for k = 0..n-1
-CORNER_STRIDE = 3
+FP_INERTIA = 9  # I_com / M, m^2 (the inertia effect's factor times eq. 25, less M d^2 of a loaded die)
+FP_RHO_MAX = 10  # largest distance from the COM to a corner, m
+FP_WINDOW = 11  # contact window: contacts arriving within it are one impact, s
+FP_DRAG_TOL = 12  # x rho_max: position error allowed per Runge-Kutta step of a flight with drag
+FP_DRAG_MAX_STEP = 13  # s: longest Runge-Kutta step of a flight with drag
+N_FP_BASE = 14
 
 # ipar indices
 IP_N = 0  # number of sides
@@ -47,7 +42,32 @@ IP_MODEL = 1  # contact model: MODEL_PAPER or MODEL_RIGID
 IP_METHOD = 2  # integrator: METHOD_EVENT or METHOD_FIXED_STEP
 IP_MAX_EVENTS = 3  # event budget per roll
 IP_CONTINUE = 4  # 1: keep simulating after the decision, until rest or t_max (for fitting)
-N_IPAR = 5
+N_IP_BASE = 5
+
+
+def _registry_slots():
+    """{slot name: (vector, index, config key)} of every kernel slot the effect registry
+    declares: ``FP_*`` names in fpar after the base slots (an array key takes consecutive
+    ones), ``IP_*`` names (choices, packed as their index) in ipar. Effects are added in the
+    registry only (dice_sweep/effects.py); their slots follow from it."""
+    slots = {}
+    next_index = {"fpar": N_FP_BASE, "ipar": N_IP_BASE}
+    for section in effect_registry.config_key_specs().values():
+        for key in section.values():
+            if not key.slot:
+                continue
+            vector = "ipar" if key.slot.startswith("IP_") else "fpar"
+            slots[key.slot] = (vector, next_index[vector], key)
+            next_index[vector] += max(key.length, 1)
+    return slots, next_index["fpar"], next_index["ipar"]
+
+
+SLOTS, FP_CORNERS, N_IPAR = _registry_slots()
+# Each slot is a module-level int here (FP_DRAG, IP_FRICTION_RULE, ...), so a kernel module
+# imports it by name and numba compiles it as a constant.
+globals().update({name: index for name, (_, index, _) in SLOTS.items()})
+FP_COM_Y = FP_COM_X + 1  # noqa: F821  (FP_COM_X: the com_offset key's slot, from the registry)
+CORNER_STRIDE = 3  # after FP_CORNERS: (rho_k, cos gamma_k, sin gamma_k) for k = 0..n-1
 
 # Flight with drag (physics/flight.py): the defaults keep a sweep's flights exact to round-off;
 # a fit, whose data are noisy by ~1e-4 m, may pass coarser ones (fpar, not config: no user sets them)
@@ -55,21 +75,34 @@ DRAG_TOL = 1e-13  # x rho_max
 DRAG_MAX_STEP = 1e-3  # s
 
 
+def slot(dotted_key):
+    """The kernel index of a registry config key (``"effects.air_drag"`` -> FP_DRAG's index)."""
+    for _, index, key in SLOTS.values():
+        if key.dotted == dotted_key:
+            return index
+    raise KeyError(f"{dotted_key} has no kernel slot in the effect registry")
 
-def _effects_values(cfg):
-    """(air_drag, com_offset, speed_restitution, contact_time) of a config, off when absent."""
-    effects = getattr(cfg, "effects", None)
-    if effects is None:
-        return 0.0, (0.0, 0.0), 0.0, 0.0
-    return effects.air_drag, tuple(effects.com_offset), effects.speed_restitution, getattr(effects, "contact_time", 0.0)
+
+def _pack_registry_slots(cfg, fpar, ipar):
+    """Fill every registry slot from the config's value of its key."""
+    for vector, index, key in SLOTS.values():
+        value = effect_registry.get_key(cfg, key.dotted)
+        if key.choices:
+            ipar[index] = key.choices.index(value)
+        elif key.length:
+            fpar[index:index + key.length] = value
+        else:
+            fpar[index] = value
 
 
 def pack_params(cfg):
     """Flatten a validated :class:`dice_sweep.config.Config` into ``(fpar, ipar)``."""
     n = cfg.die.sides
     radius = cfg.die.circumradius
-    drag, (dx, dy), k_speed, contact_time = _effects_values(cfg)
     fpar = np.zeros(FP_CORNERS + CORNER_STRIDE * n)
+    ipar = np.zeros(N_IPAR, dtype=np.int64)
+    _pack_registry_slots(cfg, fpar, ipar)
+    dx, dy = fpar[FP_COM_X], fpar[FP_COM_Y]  # noqa: F821
     fpar[FP_R] = radius
     fpar[FP_G] = cfg.world.g
     fpar[FP_BN] = cfg.contact.beta_normal
@@ -79,18 +112,13 @@ def pack_params(cfg):
     fpar[FP_DT] = cfg.integrator.dt
     fpar[FP_TMAX] = cfg.integrator.t_max
     # parallel-axis rule: I about the COM is I about the centre less M d^2
-    inertia = inertia_ratio(n) * radius * radius - (dx * dx + dy * dy)
+    inertia = cfg.effects.inertia * inertia_ratio(n) * radius * radius - (dx * dx + dy * dy)
     fpar[FP_INERTIA] = inertia
     fpar[FP_ALPHA] = inertia / (radius * radius)
-    fpar[FP_MU] = getattr(cfg.contact, "friction", math.inf)
-    fpar[FP_WINDOW] = getattr(cfg.contact, "window", DEFAULT_CONTACT_WINDOW)
-    fpar[FP_CONTACT_TIME] = contact_time
-    fpar[FP_DRAG] = drag
+    fpar[FP_MU] = cfg.contact.friction
+    fpar[FP_WINDOW] = cfg.contact.window
     fpar[FP_DRAG_TOL] = DRAG_TOL
     fpar[FP_DRAG_MAX_STEP] = DRAG_MAX_STEP
-    fpar[FP_KSR] = k_speed
-    fpar[FP_COM_X] = dx
-    fpar[FP_COM_Y] = dy
     angles = 2.0 * math.pi * np.arange(n) / n
     bx = radius * np.cos(angles) - dx
     by = radius * np.sin(angles) - dy
@@ -100,7 +128,6 @@ def pack_params(cfg):
     corners[:, 1] = bx / rho
     corners[:, 2] = by / rho
     fpar[FP_RHO_MAX] = rho.max()
-    ipar = np.zeros(N_IPAR, dtype=np.int64)
     ipar[IP_N] = n
     ipar[IP_MODEL] = MODELS[cfg.contact.model]
     ipar[IP_METHOD] = METHODS[cfg.integrator.method]

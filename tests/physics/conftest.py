@@ -1,11 +1,13 @@
 """Shared builders for kernel tests: parameters without going through TOML."""
 
 import math
-from types import SimpleNamespace
+import dataclasses
 
 import numpy as np
 import pytest
 
+from dice_sweep.config import Die, Integrator, Walls, World, default_config
+from dice_sweep.effects import config_key_specs, set_key
 from dice_sweep.physics import COUNT_COLUMNS, pack_params, roll_batch
 from dice_sweep.physics.kernel import REC_WIDTH, roll_one
 
@@ -14,17 +16,25 @@ TABLE1_RADIUS = 0.019 / math.sqrt(2)  # m, Smith 2014 Table I
 
 def make_config(sides=4, radius=TABLE1_RADIUS, beta_n=0.2, beta_t=-0.35, separation=None,
                 method="event", dt=1e-3, t_max=30.0, max_events=100_000, g=9.81, model="paper",
-                friction=math.inf, window=1e-6, air_drag=0.0, com_offset=(0.0, 0.0), speed_restitution=0.0, contact_time=0.0):
-    """A config-like object for the kernel without going through TOML."""
-    return SimpleNamespace(
-        die=SimpleNamespace(sides=sides, circumradius=radius),
-        contact=SimpleNamespace(model=model, beta_normal=beta_n, beta_tangential=beta_t, friction=friction, window=window),
-        walls=SimpleNamespace(separation=separation),
-        world=SimpleNamespace(g=g),
-        integrator=SimpleNamespace(method=method, dt=dt, t_max=t_max, max_events=max_events),
-        effects=SimpleNamespace(air_drag=air_drag, com_offset=com_offset,
-                                speed_restitution=speed_restitution, contact_time=contact_time),
+                friction=math.inf, window=1e-6, **registry_keys):
+    """A validated config for the kernel without going through TOML.
+
+    Any other keyword is a key the effect registry declares, by its name (``air_drag=0.1``,
+    ``com_offset=(0.002, 0)``, ``friction_rule="exact"``): a new effect needs nothing here.
+    """
+    by_name = {key.name: key for keys in config_key_specs().values() for key in keys.values()}
+    cfg = dataclasses.replace(
+        default_config(),
+        die=Die(sides=sides, circumradius=radius),
+        walls=Walls(separation=separation),
+        world=World(g=g),
+        integrator=Integrator(method=method, dt=dt, t_max=t_max, max_events=max_events),
     )
+    cfg = dataclasses.replace(cfg, contact=dataclasses.replace(
+        cfg.contact, model=model, beta_normal=beta_n, beta_tangential=beta_t, friction=friction, window=window))
+    for name, value in registry_keys.items():
+        cfg = set_key(cfg, by_name[name].dotted, tuple(value) if by_name[name].length else value)
+    return cfg
 
 
 def make_params(**kwargs):
