@@ -14,12 +14,14 @@ import sys
 import click
 
 from dice_sweep import __version__
-from dice_sweep.effects import names as effect_names
+from dice_sweep.effects import config_key_specs, names as effect_names
 from dice_sweep.errors import DiceSweepError
 
 USER_ERROR_EXIT = 2
 INTERRUPTED_EXIT = 130  # the shell's code for a process stopped by SIGINT (Ctrl-C)
-SET_HELP = "Override one config value, e.g. --set initial.omega0=20 or --set grid.x.num=64 (repeatable)."
+SET_HELP = ("Override one config value, e.g. --set initial.omega0=20 or --set grid.x.num=64 (repeatable). Effect keys: "
+            + ", ".join(f"{key.dotted} ({key.unit or '|'.join(key.choices)})" for keys in config_key_specs().values() for key in keys.values())
+            + " (docs/effects.md).")
 
 
 def _exit_code(error):

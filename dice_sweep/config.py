@@ -591,14 +591,12 @@ def _build(raw, checker):
     apothem = float(geometry.apothem(die.sides, die.circumradius))
     if math.hypot(*offset) >= apothem:
         raise checker.error("effects.com_offset", f"{list(offset)!r} m is not inside the die (allowed: |offset| < apothem = {_fmt(apothem)} m)")
-    ratio = float(geometry.inertia_ratio(die.sides))
-    inertia = sections["effects"].inertia
-    if inertia * ratio * die.circumradius**2 - math.hypot(*offset) ** 2 <= 0.0 or inertia * ratio > 1.0:
-        high = 1.0 / ratio
-        raise checker.error("effects.inertia", f"{inertia!r} is outside the allowed range ({_fmt(math.hypot(*offset) ** 2 / (ratio * die.circumradius**2))}, {high:.6g}] "
-                            f"for this die (above: more than all the mass at the corners; below: no inertia left about the centre of mass)")
-    if sections["effects"].corner_radius >= apothem:
-        raise checker.error("effects.corner_radius", f"{sections['effects'].corner_radius!r} m is outside the allowed range [0, {_fmt(apothem)}) m (below the apothem)")
+    partial = Config(**sections, grid=None, source=checker.source)
+    for keys in effect_registry.config_key_specs().values():
+        for key in keys.values():
+            allowed = key.check(partial) if key.check is not None else None
+            if allowed is not None:
+                raise checker.error(key.dotted, f"{effect_registry.get_key(partial, key.dotted)!r} is outside the {allowed}")
     grid = _grid(checker.table(raw, ("grid",), required=False), checker)
     _check_starts_clear(die, walls, sections["initial"], grid, checker)
     return Config(**sections, grid=grid, source=checker.source)

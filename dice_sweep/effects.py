@@ -48,6 +48,9 @@ class ConfigKey:
     choices: tuple = ()  # a string key: the values it accepts
     slot: str = ""
     help: str = ""
+    # a range that depends on the die: callable(cfg) -> None when the value fits, else the
+    # allowed range as text; config validation calls it once every section is read
+    check: object = None
 
     @property
     def dotted(self):
@@ -150,6 +153,22 @@ def _apothem(cfg):
     return cfg.die.circumradius * math.cos(math.pi / cfg.die.sides)
 
 
+def _inertia_allowed(cfg):
+    """None if [effects] inertia fits the die: at most all the mass at the corners, and some
+    inertia left about a loaded die's centre of mass; else the allowed range."""
+    ratio = _uniform_inertia_ratio(cfg.die.sides)
+    low = (cfg.effects.com_offset[0] ** 2 + cfg.effects.com_offset[1] ** 2) / (ratio * cfg.die.circumradius**2)
+    if low < cfg.effects.inertia <= 1.0 / ratio:
+        return None
+    return f"allowed range ({low:.6g}, {1.0 / ratio:.6g}] for this die (above: more than all the mass at the corners; below: none about the centre of mass)"
+
+
+def _corner_radius_allowed(cfg):
+    """None if [effects] corner_radius is below the apothem; else the allowed range."""
+    apothem = _apothem(cfg)
+    return None if cfg.effects.corner_radius < apothem else f"allowed range [0, {apothem:.6g}) m (below the apothem)"
+
+
 def _fixed(low, high):
     return lambda cfg: (low, high)
 
@@ -220,7 +239,7 @@ EFFECTS = (
         "the moment of inertia about the centre of mass is a factor times the uniform plate's (eq. 25): a die with pips, "
         "a hollow or a plated die; it acts at impacts and in pivots (free flight conserves the spin either way)",
         params=(Param("inertia", "1", "effects.inertia", lambda cfg: (0.3, min(2.0, 0.999 / _uniform_inertia_ratio(cfg.die.sides))), 1.0, (0.9, 1.1), 0.05),),
-        config_keys=(ConfigKey("effects", "inertia", 1.0, "1", low=0.0, low_open=True, high=3.0,
+        config_keys=(ConfigKey("effects", "inertia", 1.0, "1", low=0.0, low_open=True, high=3.0, check=_inertia_allowed,
                                help="I_com / (M R^2) over eq. 25's value; at most 1 / eq. 25's ratio (all mass at the corners)"),),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss: the spin after an impact off in proportion to the lever",
@@ -255,7 +274,7 @@ EFFECTS = (
         "the rolling pivot and the barrier of each side change",
         params=(Param("corner_radius", "m", "effects.corner_radius", lambda cfg: (0.0, 0.5 * _apothem(cfg)), 0.0,
                       lambda cfg: (0.03 * cfg.die.circumradius, 0.1 * cfg.die.circumradius), 1e-3),),
-        config_keys=(ConfigKey("effects", "corner_radius", 0.0, "m", low=0.0, slot="FP_CORNER_RADIUS",
+        config_keys=(ConfigKey("effects", "corner_radius", 0.0, "m", low=0.0, slot="FP_CORNER_RADIUS", check=_corner_radius_allowed,
                                help="radius of the rounded corners; below the apothem"),),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss: impacts a little later and lower, with a shorter lever",

@@ -17,12 +17,14 @@ GUIDE = """# Effects: what the loop can add, and adding one
 
 `dice-sweep fit --effects` and `dice-sweep diagnose` choose among the effects of one registry,
 `dice_sweep/effects.py`. Each entry declares its name, its kind (contact, flight or
-measurement), the config keys that switch it on (with units and the values a config accepts),
-the parameters a fit frees (fit bounds, the null value at which the effect does nothing, start
-values of the multi-start fit, a typical size), how it reaches the kernel (through its config
-keys; a measurement effect maps the simulated motion to what the tracker reports instead) and
-the residual signature that points to it. Config validation (`[effects]`, `[tracking]`), the
-fit, the diagnosis, `--effects` in the CLI help and the tables below read from it.
+measurement), the config keys it owns (unit, default, range, and the kernel parameter slot each
+fills), the parameters a fit frees (fit bounds, the null value at which the effect does
+nothing, start values of the multi-start fit, a typical size), a switch for an effect that is a
+choice of law rather than a number, and the residual signature that points to it. Everything
+else is derived from it: the config's `[contact]` extra keys and its `[effects]` and
+`[tracking]` sections (dataclass fields, validation, "did you mean", `--set`), the kernel's
+parameter vectors (`dice_sweep/physics/params.py`: `SLOTS`, `pack_params`), `--effects` in the
+CLI help, the table below and the tests' config builder (`tests/physics/conftest.py`).
 
 There is one source of g: `[world] g`. The `gravity` effect frees it; its null value is the
 config's own g.
@@ -31,52 +33,71 @@ config's own g.
 
 {table}
 
-Kinds: *contact* effects change what happens at an impact, *flight* effects act between
-impacts (and so on the states the fit gives each flight), *measurement* effects are the
-tracker's view of the die (clock, length scale, angle zero, height zero), declared in a config
-under `[tracking]`.
+Kinds: *contact* effects change what happens at an impact (and in a pivot), *flight* effects
+act between impacts (and so on the states the fit gives each flight), *measurement* effects are
+the tracker's view of the die (clock, length scale, angle zero, height zero), declared in a
+config under `[tracking]`; the kernel never reads them.
 
-## Adding an effect
+Choices of law: `contact.friction_rule` is `aimed` (default), `sliding` or `exact`, and
+`contact.restitution` is `newton` (default) or `energetic` (used by the exact rule); the
+`sliding_friction` and `exact_coulomb` effects switch to the rigid law with that rule
+(docs/physics.md, "Friction rules").
 
-A measurement effect is one entry in `dice_sweep/effects.py` and its test. Take
-`table_offset`, the tracker's height zero sitting above the table (file y = true y + offset):
+## Adding an effect: a worked example
 
-1. **The entry.** Append to `EFFECTS`:
+A physical effect is three things: its registry entry, the kernel lines where it acts, and its
+test. `speed_restitution` (restitution that falls with the impact speed) is one:
+
+1. **The entry**, in `EFFECTS` of `dice_sweep/effects.py`:
 
    ```python
    Effect(
-       "table_offset", "measurement", "the tracker's height zero is not the table: file y = true y + offset",
-       params=(Param("table_offset", "m", "tracking.table_offset",
-                     lambda cfg: (-0.25 * cfg.die.circumradius, 0.25 * cfg.die.circumradius), 0.0, (), 1e-3),),
-       config_keys=(ConfigKey("tracking", "table_offset", 0.0, "m"),),
-       measurement=Measurement(state_to_true=_shifted(1, -1.0), pose_to_file=_shifted(1, +1.0)),
-       signature="contact_height",
-       signature_note="height of the lowest corner at contact off the table by the same length for every impact",
+       "speed_restitution", "contact", "restitution that falls with impact speed, beta_normal / (1 + k |u_n|)",
+       params=(Param("speed_restitution", "s/m", "effects.speed_restitution", _fixed(0.0, 5.0), 0.0, (0.2, 1.0), 0.1),),
+       config_keys=(ConfigKey("effects", "speed_restitution", 0.0, "s/m", low=0.0, slot="FP_KSR"),),
+       signature="impact_prediction",
+       signature_note="frames predicted through an impact miss, more after fast impacts than after slow ones",
    )
    ```
 
-   `Param(name, unit, config key, fit bounds, null value, start values, typical size)`. The
-   `Measurement` gives the map from the file's units to the die's (`state_to_true`, on a
-   segment's (x, y, phi, vx, vy, omega)) and back (`pose_to_file`, on simulated x, y, phi);
-   `times_to_true` maps the file's times, for a clock effect.
-2. **The config key.** `ConfigKey("tracking", "table_offset", ...)` is all the config needs:
-   `[tracking] table_offset = 0.002` now validates (range, unit, "did you mean"), and
-   `--set tracking.table_offset=0.002` works. The `Tracking` dataclass in `config.py` holds one
-   field per `[tracking]` key (`tests/test_config.py` checks that the two agree).
-3. **Nothing else changes.** `dice-sweep fit --effects table_offset` fits it,
-   `dice-sweep diagnose` tries it as a candidate, and its null value (0) is what its 95 %
-   interval must exclude before it can be named.
-4. **The test.** `tests/test_effects.py` checks every entry (bounds contain the null, starts
-   inside the bounds, the config key exists, measurement maps are inverse pairs). The loop's
-   test adds a case to `LIBRARY_CASES` in `tests/measured/test_diagnose.py`: the independent
-   generator (`tests/measured/independent.py`) makes drops with the effect on, and the test
-   asserts that the loop names it and that the 95 % interval covers the true value.
+   `ConfigKey(section, name, default, unit, low=..., high=..., slot=...)` makes
+   `[effects] speed_restitution = 0.5` a valid config key (range, unit, "did you mean"),
+   `--set effects.speed_restitution=0.5` work, a field of the config's `Effects` dataclass, and,
+   with `slot="FP_KSR"`, a slot of the kernel's `fpar` vector that `pack_params` fills from the
+   config (an `IP_*` slot name puts a choice in `ipar`, as its index in `choices`; a key whose
+   allowed range depends on the die takes `check=`). `Param(name, unit, config key, fit bounds,
+   null value, start values, typical size)` is what a fit frees.
+2. **The kernel lines.** The slot is a module-level constant of `dice_sweep.physics.params`,
+   imported by name (numba compiles it as a constant). `speed_restitution` acts in one line of
+   `dice_sweep/physics/impact.py`:
 
-A *physical* effect also needs the kernel to read its value: a config key in `[effects]`, an
-`fpar` slot in `dice_sweep/physics/params.py` (`pack_params`) and the physics in
-`dice_sweep/physics/` (see how `air_drag` enters `flight.py` through `FP_DRAG`), with a
-physics test in `tests/physics/` and the independent generator taught the same physics from
-its written definition in docs/physics.md, not from the kernel's code.
+   ```python
+   from dice_sweep.physics.params import FP_BN, FP_KSR
+
+   @numba.njit(cache=True)
+   def beta_normal_at(fpar, speed):
+       return fpar[FP_BN] / (1.0 + fpar[FP_KSR] * speed)
+   ```
+3. **The test**: its physics against an independent calculation
+   (`tests/physics/test_effects.py::test_speed_restitution_on_a_flat_landing`: the rebound of a
+   flat landing against beta_normal / (1 + k v) by hand), and a case in the independent
+   generator (`tests/measured/independent.py`, which shares no code with the kernel) and in
+   `LIBRARY_CASES` of `tests/measured/test_diagnose.py`, where the loop must name it with the
+   true value inside its 95 % interval.
+
+Nothing else changes. `python scripts/effects_doc.py --write` regenerates this page's table.
+Then `dice-sweep roll configs/table1.toml --set effects.speed_restitution=0.5` rolls with it,
+`dice-sweep fit DATA --config C --effects speed_restitution` fits it, and `dice-sweep diagnose`
+tries it as a candidate. `tests/test_effects.py` checks every entry: bounds contain the null,
+starts lie inside the bounds, its config key exists, every kernel slot is indexed by some kernel
+module (`test_every_registry_slot_is_read_by_a_kernel`), switching a physical effect on changes
+a roll (`test_physical_effects_change_a_roll`), a measurement effect leaves the kernel's
+parameters alone, and the code block of step 1 above builds the registry's own entry
+(`test_the_worked_example_is_the_registry_entry`).
+
+A measurement effect has no kernel lines: its entry gives a `Measurement`, the map from the
+file's units to the die's (`state_to_true`, on a segment's x, y, phi, vx, vy, omega) and back
+(`pose_to_file`), `times_to_true` for a clock (see `table_offset`).
 """
 
 

@@ -40,16 +40,96 @@ def test_each_entry_is_complete(name):
     assert (entry.measurement is not None) == (entry.kind == "measurement")
 
 
+# A probe every physical effect must show in: the rigid law capped by friction (so a switch of
+# the contact law or of the friction rule matters), throws with spin, slip and a landing near
+# flat (for flat_landing), between walls; sampled to 0.6 s, past the decision.
+PROBE_CFG = parse_config(
+    "[die]\nsides = 4\ncircumradius = 0.0424\n[contact]\nbeta_normal = 0.4\nbeta_tangential = 0.3\nfriction = 0.15\n"
+    "[walls]\nseparation = 0.3\n[integrator]\nt_max = 0.6\n"
+)
+PROBE_STARTS = np.array([
+    [0.0, 0.15, 0.3, 0.4, 0.0, 25.0],
+    [0.01, 0.12, 1.1, -0.8, -0.5, -30.0],
+    [0.0, 0.0424 * math.cos(math.pi / 4) + 0.02, math.pi / 4 + 0.002, 0.05, -1.0, 0.3],  # near flat
+    [-0.02, 0.2, 2.0, 1.5, 1.0, 5.0],
+])
+
+
+def probe_paths(cfg):
+    """Poses of the geometric centre of the probe throws every 5 ms, through the kernel."""
+    from dice_sweep.physics.kernel import sample_batch
+    from dice_sweep.physics.params import IP_CONTINUE
+
+    fpar, ipar = pack_params(cfg)
+    ipar[IP_CONTINUE] = 1
+    times = np.arange(0.0, 0.6, 0.005)
+    all_times = np.tile(times, len(PROBE_STARTS))
+    starts = np.arange(len(PROBE_STARTS) + 1) * times.size
+    out = np.empty((all_times.size, 6))
+    sample_batch(fpar, ipar, PROBE_STARTS.copy(), all_times, starts, out, np.zeros(len(PROBE_STARTS), np.int8))
+    return out
+
+
 @pytest.mark.parametrize("name", [e.name for e in effects.EFFECTS if e.kind != "measurement"])
-def test_physical_effects_reach_the_kernel(name):
-    """Switching an effect on at a value away from its null changes the kernel's parameters."""
+def test_physical_effects_change_a_roll(name):
+    """Switching an effect on at its first start value changes the rolls of the probe: the
+    kernel reads what the registry packs (a registry entry whose slot no kernel line reads
+    fails here; so did `test_physical_effects_reach_the_kernel`'s successor on an unread slot)."""
     entry = effects.effect(name)
-    values = {p.name: p.starts_of(CFG)[0] for p in entry.params}
-    on = effects.with_values(CFG, (name,), values)
+    values = {p.name: p.starts_of(PROBE_CFG)[0] for p in entry.params}
+    on = effects.with_values(PROBE_CFG, (name,), values)
     if name != "gravity":  # g's null is the config's own value: it is never "declared"
         assert entry.is_declared(on)
+    base = PROBE_CFG
+    if entry.switch:  # compare with the same contact model, so that the effect alone differs
+        for key, value in entry.switch[:-1]:
+            base = effects.set_key(base, key, value)
+    before, after = probe_paths(base), probe_paths(on)
+    assert np.all(np.isfinite(after))
+    assert np.max(np.abs(after[:, :2] - before[:, :2])) > 1e-6, f"{name} changed no roll by a micrometre"
+
+
+@pytest.mark.parametrize("name", [e.name for e in effects.EFFECTS if e.kind == "measurement"])
+def test_measurement_effects_leave_the_kernel_alone(name):
+    """The tracker's view is not the die's motion: the kernel's parameters do not change."""
+    (p,) = effects.effect(name).params
+    on = effects.with_values(CFG, (name,), {p.name: p.starts_of(CFG)[0]})
     before, after = pack_params(CFG), pack_params(on)
-    assert not (np.array_equal(before[0], after[0]) and np.array_equal(before[1], after[1]))
+    assert np.array_equal(before[0], after[0]) and np.array_equal(before[1], after[1])
+
+
+def test_every_registry_slot_is_read_by_a_kernel():
+    """Each kernel slot the registry declares is indexed by some kernel module besides the one
+    that packs it (a slot that nothing reads is an effect that does nothing)."""
+    import re
+    from pathlib import Path
+
+    from dice_sweep.physics.params import SLOTS
+
+    sources = {path.name: path.read_text() for path in (Path(effects.__file__).parent / "physics").glob("*.py") if path.name != "params.py"}
+    for name in SLOTS:
+        readers = [f for f, text in sources.items() if re.search(rf"(fpar|ipar)\[{name}\b", text)]
+        assert readers, f"{name}: no kernel module reads fpar[{name}] / ipar[{name}]"
+
+
+def test_registry_slots_are_packed_from_the_config():
+    from dice_sweep.physics.params import SLOTS, slot
+
+    cfg = effects.with_values(CFG, ("exact_coulomb",), {"air_drag": 0.2, "com_dx": 0.001, "com_dy": -0.002})
+    fpar, ipar = pack_params(cfg)
+    assert fpar[slot("effects.air_drag")] == 0.2
+    assert tuple(fpar[slot("effects.com_offset"):slot("effects.com_offset") + 2]) == (0.001, -0.002)
+    assert ipar[slot("contact.friction_rule")] == effects.FRICTION_RULES.index("exact")
+    indices = [(vector, index + i) for vector, index, key in SLOTS.values() for i in range(max(key.length, 1))]
+    assert len(set(indices)) == len(indices)  # no two keys share a slot
+
+
+def test_inertia_scales_the_kernels_moment_of_inertia():
+    from dice_sweep.geometry import inertia_ratio
+    from dice_sweep.physics.params import FP_INERTIA
+
+    on = effects.with_values(CFG, ("inertia",), {"inertia": 0.8})
+    assert pack_params(on)[0][FP_INERTIA] == pytest.approx(0.8 * inertia_ratio(4) * 0.0424**2, rel=1e-15)
 
 
 def test_kernel_reads_the_values_set():
@@ -112,3 +192,40 @@ def test_every_signature_is_measured_by_the_diagnosis():
 
     for entry in effects.EFFECTS:
         assert entry.signature in SIGNATURES, entry.name
+
+
+def test_the_worked_example_is_the_registry_entry():
+    """docs/effects.md's worked example (step 1) builds exactly the registry's entry: the code a
+    contributor copies is the code that runs."""
+    import re
+    import textwrap
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "docs" / "effects.md").read_text()
+    block = re.search(r"1\. \*\*The entry\*\*.*?```python\n(.*?)```", text, re.S).group(1)
+    example = eval(textwrap.dedent(block), vars(effects))  # the names the registry module has
+    entry = effects.effect(example.name)
+
+    def described(e):
+        params = [(p.name, p.unit, p.key, p.bounds_of(CFG), p.null_value(CFG), p.starts_of(CFG), p.scale) for p in e.params]
+        keys = [(k.dotted, k.default, k.unit, k.low, k.high, k.low_open, k.slot, k.choices) for k in e.config_keys]
+        return (e.name, e.kind, e.summary, params, keys, e.switch, e.signature, e.signature_note)
+
+    assert described(example) == described(entry)
+    # and the kernel line the example shows is the kernel's
+    impact_source = (Path(effects.__file__).parent / "physics" / "impact.py").read_text()
+    assert "return fpar[FP_BN] / (1.0 + fpar[FP_KSR] * speed)" in impact_source
+
+
+def test_the_worked_example_runs(tmp_path):
+    """The example's roll command runs, and the effect changes the roll it prints."""
+    from click.testing import CliRunner
+
+    from dice_sweep.cli import main
+
+    runner = CliRunner()
+    args = ["roll", "configs/table1.toml", "--json"]
+    plain = runner.invoke(main, args)
+    slowed = runner.invoke(main, args + ["--set", "effects.speed_restitution=0.5"])
+    assert plain.exit_code == 0 and slowed.exit_code == 0, slowed.output
+    assert plain.output != slowed.output
