@@ -40,11 +40,18 @@ CACHE_SUBDIR = "dice_sweep_physics"
 
 
 def source_digest():
-    """SHA-256 (hex) of every physics source file, by name and content."""
+    """SHA-256 (hex) of every physics source file, by name and content, and of what the kernels
+    compile in from outside physics/: the effect registry's kernel slots and the codes of the
+    config's choices (adding an effect renumbers the slots after it without touching a
+    physics file; a cache keyed on the physics files alone would index the old layout)."""
+    from dice_sweep import config, effects
+
     digest = hashlib.sha256()
     for path in sorted(_PHYSICS_DIR.glob("*.py")):
         digest.update(path.name.encode())
         digest.update(path.read_bytes())
+    layout = [(key.dotted, key.slot, key.length, key.choices) for keys in effects.config_key_specs().values() for key in keys.values()]
+    digest.update(repr((layout, config.CONTACT_MODELS, config.INTEGRATOR_METHODS)).encode())
     return digest.hexdigest()
 
 

@@ -43,3 +43,15 @@ def test_probe_is_not_skipped_once_numba_has_loaded_its_registry():
     code = "import numba.np.arraymath\nfrom dice_sweep.startup import skip_numba_blas_probe\nprint(skip_numba_blas_probe())"
     child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert child.stdout.strip() == "False"
+
+
+def test_the_cache_key_covers_the_registrys_kernel_slots(monkeypatch):
+    """A new registry slot renumbers the slots after it without touching a physics file; the
+    kernels' cache must not be reused across that (it would index the old layout)."""
+    from dice_sweep import effects, startup
+
+    before = startup.source_digest()
+    specs = effects.config_key_specs()
+    extra = effects.ConfigKey("effects", "angular_drag", 0.0, "1", slot="FP_ANGULAR_DRAG")
+    monkeypatch.setattr(effects, "config_key_specs", lambda: {**specs, "effects": {"angular_drag": extra, **specs["effects"]}})
+    assert startup.source_digest() != before
