@@ -135,6 +135,12 @@ class Effect:
     equivalent: tuple = ()
     signature: str = ""  # the residual signature (diagnose) that points to this effect
     signature_note: str = ""
+    # effects without which this one changes little (friction caps only the rigid law; a
+    # friction rule matters only where friction caps): the loop fits such pairs together
+    acts_with: tuple = ()
+    # base parameters the model no longer has once this effect is on (the exact Coulomb
+    # impact has no tangential restitution): a fit does not free them
+    drops: tuple = ()
 
     def is_declared(self, cfg):
         """Whether a config already has this effect on (it is then not a candidate)."""
@@ -198,6 +204,7 @@ EFFECTS = (
         "coulomb_friction", "contact",
         "the tangential impulse is capped at friction times the normal impulse (sliding contacts)",
         params=(Param("friction", "1", "contact.friction", _fixed(0.0, 3.0), math.inf, (0.1, 0.5), 0.1),),
+        acts_with=("corner_impulse",),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss (sliding contacts: the horizontal motion after it)",
     ),
@@ -249,6 +256,7 @@ EFFECTS = (
         "the rigid law's Coulomb cap takes the textbook sliding branch: a capped tangential impulse opposes the incoming slip "
         "(instead of lying on the side of the impulse aimed at the restitution target)",
         switch=(("contact.model", "rigid"), ("contact.friction_rule", "sliding")),
+        acts_with=("coulomb_friction",),
         config_keys=(
             ConfigKey("contact", "friction_rule", "aimed", "", choices=FRICTION_RULES, slot="IP_FRICTION_RULE",
                       help="how the rigid law meets the Coulomb cap: aimed (the cone's edge on the side of the aimed impulse), "
@@ -265,6 +273,8 @@ EFFECTS = (
         "the exact Coulomb impact at the touching corner(s): the contact velocity integrated over the normal impulse "
         "(Routh's method) with slip, stick and slip reversal, Newton restitution; no tangential restitution",
         switch=(("contact.model", "rigid"), ("contact.friction_rule", "exact")),
+        acts_with=("coulomb_friction",),
+        drops=("beta_tangential",),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss after impacts that stick or reverse their slip",
     ),

@@ -768,9 +768,13 @@ def _untried(pool, spec):
     """Candidates of a round: those not in the model, and not indistinguishable from one in it
     or from one earlier in the pool (the registry's ``equivalent``: the same fit twice)."""
     tried = []
+    model = set(spec.effects) | set(spec.declared)
+    switched = {pair for name in model for pair in registry.effect(name).switch}
     for name in pool:
-        have = set(spec.effects) | set(spec.declared) | set(tried)
-        if name not in have and not have & set(registry.effect(name).equivalent):
+        have = model | set(tried)
+        entry = registry.effect(name)
+        implied = entry.switch and set(entry.switch) <= switched  # a switch the model has thrown already
+        if name not in have and not have & set(entry.equivalent) and not implied and not any(_conflict(name, m) for m in model):
             tried.append(name)
     return tried
 
@@ -792,14 +796,23 @@ def _try_candidate(task):
 
 def _pairs(results):
     """Pairs worth fitting together when no single effect passes: the two with the largest
-    statistics, and every pair of contact effects (they act on the same impulse, so one may
-    help only with the other: a corner impulse only with friction capping it, say)."""
-    kind = {r["effect"]: registry.effect(r["effect"]).kind for r in results}
+    statistics, and every pair the registry says acts together (``acts_with``: one may help
+    only with the other, a corner impulse only with friction capping it, say). Two effects
+    that set one config key to different values (two friction rules) are never a pair."""
+    tried = [r["effect"] for r in results]
     top = [r["effect"] for r in sorted(results, key=lambda r: -r["z"]) if r["z"] > 0][:2]
     pairs = [tuple(top)] if len(top) == 2 else []
-    contact = [name for name in registry.names() if kind.get(name) == "contact"]
-    pairs += [(a, b) for i, a in enumerate(contact) for b in contact[i + 1:] if (a, b) not in pairs and (b, a) not in pairs]
-    return pairs
+    for a in tried:
+        for b in registry.effect(a).acts_with:
+            if b in tried and (a, b) not in pairs and (b, a) not in pairs:
+                pairs.append((a, b))
+    return [pair for pair in pairs if not _conflict(*pair)]
+
+
+def _conflict(a, b):
+    """Whether effects a and b switch one config key to different values."""
+    switch_a = dict(registry.effect(a).switch)
+    return any(key in switch_a and switch_a[key] != value for key, value in registry.effect(b).switch)
 
 
 def _try_pair(task):

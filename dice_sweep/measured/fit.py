@@ -74,8 +74,10 @@ class ModelSpec:
         return cls(tuple(effects), registry.declared_effects(cfg))
 
     def param_names(self):
-        names = [p.name for p in registry.BASE_PARAMS]
-        for name in self.declared + self.effects:
+        on = self.declared + self.effects
+        dropped = {d for name in on for d in registry.effect(name).drops}
+        names = [p.name for p in registry.BASE_PARAMS if p.name not in dropped]
+        for name in on:
             names += [p.name for p in registry.effect(name).params]
         return names
 
