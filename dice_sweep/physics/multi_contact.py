@@ -25,6 +25,17 @@ frictionless case always has a solution (its matrix is positive definite) and ne
 energy. When the chosen impulse would gain energy it is moved towards the frictionless one, as
 far as needed (an energy clip, as for one contact).
 
+Friction rules (``[contact] friction_rule``). "aimed": the edges as above. "sliding": the
+textbook sliding branch; the enumeration chooses the case as above, and a tangential row it put
+on an edge is moved to the edge opposing that row's incoming tangential velocity and the case
+solved again (with one contact this is impact.corner_impulse's sliding branch); if that case
+pulls or leaves a contact approaching it is a jam and the frictionless impulse is used.
+"exact": the integrated Coulomb impact is single-contact only (physics/exact_impact.py); two
+contacts use the sliding rule with the sticking target u_t' = 0 in place of -beta_tangential
+u_t, and Newton restitution whatever ``[contact] restitution`` says. That is the exact law's
+incoming slide and its sticking end; it misses slip reversal within a two-contact impact and
+the energetic law's phase coupling (docs/physics.md, "Friction rules").
+
 Paper law. Eqs 9-13 depend only on the surface, not on the corner, so two corners on one
 surface get one application of the law. It stands when the centre approaches the surface
 and neither corner is left approaching; otherwise, and for contacts on two surfaces, the rigid
@@ -38,8 +49,8 @@ import numpy as np
 
 from dice_sweep.physics.flight import corner_offset, surface_frame
 from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, beta_normal_at, corner_normal_velocity, paper_law, resolve_impact
-from dice_sweep.physics.params import FP_ALPHA, FP_BT, FP_INERTIA, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_MODEL
-from dice_sweep.physics.layout import MODEL_PAPER
+from dice_sweep.physics.params import FP_ALPHA, FP_BT, FP_INERTIA, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_FRICTION_RULE, IP_MODEL
+from dice_sweep.physics.layout import FRICTION_RULE_AIMED, FRICTION_RULE_EXACT, MODEL_PAPER
 
 MAX_ROWS = 4  # two normal rows and at most two tangential rows
 # Relative slack of the admissibility tests: round-off of the 4 x 4 solves, not physics.
@@ -173,7 +184,85 @@ def _tangential_rows(jac, owner, contacts, normal_mask, same_surface):
 
 
 @numba.njit(cache=True)
-def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, best_dv):
+def _solve_case(s, inertia, mu, jac, owner, rows, normal_mask, mode, target, slack, check_tangential,
+                var, coef, a, x, impulse, dv):
+    """Solve one case of :func:`best_impulse` (normal_mask, tangential modes) into dv.
+
+    Returns True when the case is solvable and admissible: its normal impulses push, a contact
+    without impulse leaves on its own, and (``check_tangential``) each target lies inside its
+    cone and each edge impulse falls short of its target.
+    """
+    m = 0
+    for r in range(rows):
+        var[r] = -1
+        if (r < 2 and normal_mask & (1 << r)) or (r >= 2 and mode[r] == 0):
+            var[r] = m
+            m += 1
+    for r in range(rows):
+        for v in range(m):
+            coef[r, v] = 0.0
+        if var[r] >= 0:
+            coef[r, var[r]] = 1.0
+        elif r >= 2:  # on an edge: +-mu times the normal impulses it belongs to
+            sign = 1.0 if mode[r] == 1 else -1.0
+            for i in range(2):
+                if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
+                    coef[r, var[i]] = sign * mu
+    # one equation per unknown: that row's velocity reaches its target
+    zero = dv  # dv is zeroed below, after its use as the "no change" vector here
+    zero[0] = 0.0
+    zero[1] = 0.0
+    zero[2] = 0.0
+    eq = 0
+    for r in range(rows):
+        if var[r] < 0:
+            continue
+        for v in range(m):
+            acc = 0.0
+            for q in range(rows):
+                if coef[q, v] != 0.0:
+                    k_rq = jac[r, 0] * jac[q, 0] + jac[r, 1] * jac[q, 1] + jac[r, 2] * jac[q, 2] / inertia
+                    acc += k_rq * coef[q, v]
+            a[eq, v] = acc
+        x[eq] = target[r] - _velocity(jac, r, s, zero)
+        eq += 1
+    if not _solve_in_place(a, x, m):
+        return False
+    dv[0] = 0.0
+    dv[1] = 0.0
+    dv[2] = 0.0
+    for r in range(rows):
+        acc = 0.0
+        for v in range(m):
+            acc += coef[r, v] * x[v]
+        impulse[r] = acc
+        dv[0] += acc * jac[r, 0]
+        dv[1] += acc * jac[r, 1]
+        dv[2] += acc * jac[r, 2] / inertia
+    ok = True
+    for i in range(2):
+        if var[i] >= 0:
+            ok = ok and impulse[i] >= -slack  # pushes
+        else:
+            ok = ok and _velocity(jac, i, s, dv) >= target[i] - slack  # leaves on its own
+    if not check_tangential:
+        return ok
+    for r in range(2, rows):
+        if mode[r] == 0:
+            pressing = 0.0
+            for i in range(2):
+                if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
+                    pressing += impulse[i]
+            ok = ok and (math.isinf(mu) or abs(impulse[r]) <= mu * pressing + slack)
+        elif mode[r] == 1:  # the + edge falls short of the target
+            ok = ok and _velocity(jac, r, s, dv) <= target[r] + slack
+        else:
+            ok = ok and _velocity(jac, r, s, dv) >= target[r] - slack
+    return ok
+
+
+@numba.njit(cache=True)
+def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, best_dv, sliding=False):
     """Enumerate the cases of a two-contact impact (module docstring).
 
     Parameters
@@ -193,6 +282,11 @@ def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, b
         No tangential impulse (the reference of the energy clip).
     best_dv : float64[3]
         Output: (dvx, dvy, domega) of the chosen case.
+    sliding : bool
+        The textbook sliding branch (friction_rule "sliding"): in the chosen case, a tangential
+        row on an edge of its cone is moved to the edge opposing that row's incoming tangential
+        velocity and the case solved again; if that case pulls or leaves a contact
+        approaching, no case is admissible (a jam, as for one contact).
 
     Returns
     -------
@@ -222,6 +316,8 @@ def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, b
     first_mode = 1 if mu == 0.0 else 0
     last_mode = 0 if math.isinf(mu) else (1 if mu == 0.0 else 2)
     best_energy = math.inf
+    best_mask = 0
+    best_case = 0
     for normal_mask in range(1, 4):
         rows = 2 if frictionless else _tangential_rows(jac, owner, contacts, normal_mask, same_surface)
         for r in range(2, rows):
@@ -233,75 +329,42 @@ def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, b
             for r in range(2, rows):
                 mode[r] = first_mode + code % n_modes
                 code //= n_modes
-            m = 0
-            for r in range(rows):
-                var[r] = -1
-                if (r < 2 and normal_mask & (1 << r)) or (r >= 2 and mode[r] == 0):
-                    var[r] = m
-                    m += 1
-            for r in range(rows):
-                for v in range(m):
-                    coef[r, v] = 0.0
-                if var[r] >= 0:
-                    coef[r, var[r]] = 1.0
-                elif r >= 2:  # on an edge: +-mu times the normal impulses it belongs to
-                    sign = 1.0 if mode[r] == 1 else -1.0
-                    for i in range(2):
-                        if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
-                            coef[r, var[i]] = sign * mu
-            # one equation per unknown: that row's velocity reaches its target
-            eq = 0
-            for r in range(rows):
-                if var[r] < 0:
-                    continue
-                for v in range(m):
-                    acc = 0.0
-                    for q in range(rows):
-                        if coef[q, v] != 0.0:
-                            k_rq = jac[r, 0] * jac[q, 0] + jac[r, 1] * jac[q, 1] + jac[r, 2] * jac[q, 2] / inertia
-                            acc += k_rq * coef[q, v]
-                    a[eq, v] = acc
-                x[eq] = target[r] - _velocity(jac, r, s, zero)
-                eq += 1
-            if not _solve_in_place(a, x, m):
-                continue
-            dv[0] = 0.0
-            dv[1] = 0.0
-            dv[2] = 0.0
-            for r in range(rows):
-                acc = 0.0
-                for v in range(m):
-                    acc += coef[r, v] * x[v]
-                impulse[r] = acc
-                dv[0] += acc * jac[r, 0]
-                dv[1] += acc * jac[r, 1]
-                dv[2] += acc * jac[r, 2] / inertia
-            ok = True
-            for i in range(2):
-                if var[i] >= 0:
-                    ok = ok and impulse[i] >= -slack  # pushes
-                else:
-                    ok = ok and _velocity(jac, i, s, dv) >= target[i] - slack  # leaves on its own
-            for r in range(2, rows):
-                if mode[r] == 0:
-                    pressing = 0.0
-                    for i in range(2):
-                        if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
-                            pressing += impulse[i]
-                    ok = ok and (math.isinf(mu) or abs(impulse[r]) <= mu * pressing + slack)
-                elif mode[r] == 1:  # the + edge falls short of the target
-                    ok = ok and _velocity(jac, r, s, dv) <= target[r] + slack
-                else:
-                    ok = ok and _velocity(jac, r, s, dv) >= target[r] - slack
-            if not ok:
+            if not _solve_case(s, inertia, mu, jac, owner, rows, normal_mask, mode, target, slack, True,
+                               var, coef, a, x, impulse, dv):
                 continue
             energy = _energy_change(s, inertia, dv)
             if energy < best_energy:
                 best_energy = energy
+                best_mask = normal_mask
+                best_case = case
                 best_dv[0] = dv[0]
                 best_dv[1] = dv[1]
                 best_dv[2] = dv[2]
-    return best_energy
+    if not sliding or frictionless or math.isinf(best_energy) or mu == 0.0 or math.isinf(mu):
+        return best_energy
+    # the sliding branch: rebuild the chosen case, each edge row opposing its incoming slip
+    rows = _tangential_rows(jac, owner, contacts, best_mask, same_surface)
+    n_modes = last_mode - first_mode + 1
+    code = best_case
+    flipped = False
+    for r in range(2, rows):
+        mode[r] = first_mode + code % n_modes
+        code //= n_modes
+        u_row = _velocity(jac, r, s, zero)
+        target[r] = -beta_t * u_row
+        if mode[r] != 0 and u_row != 0.0:
+            opposing = 2 if u_row > 0.0 else 1
+            flipped = flipped or mode[r] != opposing
+            mode[r] = opposing
+    if not flipped:
+        return best_energy
+    if not _solve_case(s, inertia, mu, jac, owner, rows, best_mask, mode, target, slack, False,
+                       var, coef, a, x, impulse, dv):
+        return math.inf
+    best_dv[0] = dv[0]
+    best_dv[1] = dv[1]
+    best_dv[2] = dv[2]
+    return _energy_change(s, inertia, dv)
 
 
 @numba.njit(cache=True)
@@ -374,8 +437,13 @@ def _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
     inertia = fpar[FP_INERTIA]
     changes = np.empty((2, 3))  # with friction, frictionless
     energies = np.empty(2)
+    # friction rules (module docstring): "exact" has no two-contact integration here; it uses
+    # the sliding edge with the sticking target u_t' = 0, the exact law's first phase and its end
+    rule = ipar[IP_FRICTION_RULE]
+    beta_t = 0.0 if rule == FRICTION_RULE_EXACT else fpar[FP_BT]
+    sliding = rule != FRICTION_RULE_AIMED
     for k in range(2):
-        energies[k] = best_impulse(s, inertia, fpar[FP_MU], fpar[FP_BT], contacts, same_surface, k == 1, changes[k])
+        energies[k] = best_impulse(s, inertia, fpar[FP_MU], beta_t, contacts, same_surface, k == 1, changes[k], sliding)
     energy = energies[0]
     dv = changes[0]
     free = changes[1]
