@@ -347,6 +347,44 @@ def test_two_contact_sliding_opposes_the_slip_and_exact_sticks():
     assert s[3] + s[5] * apothem == pytest.approx(0.0, abs=1e-12)  # the midpoint below the centre
 
 
+def test_two_contact_exact_is_one_contacts_exact_impact_when_the_other_needs_none():
+    """A hexagon landing flat with spin (for a square an impulse at one corner drives the other
+    down, h^2 m / I = 1.5 > 1; for a hexagon 0.6): when one corner's exact impact (the solve_ivp reference,
+    applied with plain numpy) leaves the other corner at least as fast as Newton asks, the
+    two-contact exact rule gives that impact (of two such, the more dissipative)."""
+    rng = np.random.default_rng(23)
+    sides, beta_n, mu = 6, 0.5, 0.3
+    fpar, ipar = make_params(sides=sides, model="rigid", beta_n=beta_n, friction=mu, friction_rule="exact")
+    inertia = fpar[FP_INERTIA]
+    matched = 0
+    for _ in range(60):
+        s = flat_state(sides, rng.uniform(-1, 1), -rng.uniform(0.2, 1), rng.uniform(-150, 150))
+        s[5] = rng.uniform(-1, 1) * abs(s[4]) / (0.5 * R)  # both corners approach
+        r = [np.array(corner_vector(s, fpar, c)) for c in (0, 1)]
+        u = [np.array([s[3] - s[5] * ri[1], s[4] + s[5] * ri[0]]) for ri in r]
+        if max(ui[1] for ui in u) >= 0:
+            continue
+        candidates = []
+        for i in (0, 1):
+            k = mass_matrix(inertia, -r[i][1], r[i][0])
+            p_t, p_n = reference_impact(u[i][0], u[i][1], k, beta_n, mu, False)
+            if energy_change(u[i], k, np.array([p_t, p_n])) > 0:
+                continue  # Newton's gain: the kernel would clip; not this test's case
+            v = s[3:].copy() + [p_t, p_n, (r[i][0] * p_n - r[i][1] * p_t) / inertia]
+            j = 1 - i
+            if v[1] + v[2] * r[j][0] >= -beta_n * u[j][1]:
+                candidates.append(v)
+        after = s.copy()
+        assert resolve_two_contacts(after, fpar, ipar, SURF_TABLE, 0, SURF_TABLE, 1, 1.0, np.zeros(N_COUNTS, np.int32))
+        if not candidates:
+            continue
+        best = min(candidates, key=lambda v: v[0] ** 2 + v[1] ** 2 + inertia * v[2] ** 2)
+        scale = abs(s[3]) + abs(s[4]) + R * abs(s[5])
+        assert np.allclose(after[3:5], best[:2], atol=1e-9 * scale) and R * abs(after[5] - best[2]) <= 1e-9 * scale
+        matched += 1
+    assert matched > 5
+
+
 # --- whole rolls ----------------------------------------------------------------------------
 @pytest.mark.parametrize("rule,restitution,friction", [
     ("exact", "newton", 0.3), ("exact", "energetic", 0.3), ("exact", "newton", math.inf),
