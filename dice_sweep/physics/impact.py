@@ -21,6 +21,10 @@ dT = P . u + P^T K P / 2, so the law checks it and, when it is positive or the n
 would pull, moves the impulse towards the frictionless one (a purely normal impulse meeting
 the same normal condition, which never gains energy) just as far as needed: an "energy clip".
 Every impulse on that segment meets the normal condition and lies inside the friction cone.
+
+``[contact] friction_rule`` (ipar[IP_FRICTION_RULE]) picks the rule: "aimed" (the above),
+"sliding" (the textbook branch P_t = -sign(u_t) mu P_n, same jam rule and clip) or "exact"
+(the integrated Coulomb impact, physics/exact_impact.py, with ``[contact] restitution``).
 """
 
 import math
