@@ -168,17 +168,21 @@ def exact_impulse(u_t, u_n, k_tt, k_tn, k_nn, beta_n, mu, energetic):
         1 when Newton's terminal impulse would have gained energy and the energetic one was
         used instead (or the phases did not close and the frictionless impulse was used).
     """
-    p_t, p_n = _integrate(u_t, u_n, k_tt, k_tn, k_nn, beta_n, mu, energetic)
-    if p_n < 0.0:  # not expected (module docstring): the frictionless impulse, never a gain
-        return 0.0, -(1.0 + beta_n) * u_n / k_nn, 1
-    if energetic:
-        return p_t, p_n, 0
-    # energy change of the impulse, exactly: P . u + P^T K P / 2
-    gain = p_t * u_t + p_n * u_n + 0.5 * (k_tt * p_t * p_t + 2.0 * k_tn * p_t * p_n + k_nn * p_n * p_n)
-    if gain > 0.0:
-        p_t, p_n = _integrate(u_t, u_n, k_tt, k_tn, k_nn, beta_n, mu, True)
-        return p_t, p_n, 1
-    return p_t, p_n, 0
+    clipped = 0
+    # one call site of _integrate (each call site is compiled anew: cold start)
+    for _ in range(2):
+        p_t, p_n = _integrate(u_t, u_n, k_tt, k_tn, k_nn, beta_n, mu, energetic)
+        if p_n < 0.0:  # not expected (module docstring): the frictionless impulse, never a gain
+            return 0.0, -(1.0 + beta_n) * u_n / k_nn, 1
+        if energetic:
+            return p_t, p_n, clipped
+        # energy change of the impulse, exactly: P . u + P^T K P / 2
+        gain = p_t * u_t + p_n * u_n + 0.5 * (k_tt * p_t * p_t + 2.0 * k_tn * p_t * p_n + k_nn * p_n * p_n)
+        if gain <= 0.0:
+            return p_t, p_n, 0
+        energetic = True  # Newton's impulse would gain: the energetic terminal impulse instead
+        clipped = 1
+    return p_t, p_n, clipped
 
 
 @numba.njit(cache=True)

@@ -199,84 +199,6 @@ def _tangential_rows(jac, owner, contacts, normal_mask, same_surface):
 
 
 @numba.njit(cache=True)
-def _solve_case(s, inertia, mu, jac, owner, rows, normal_mask, mode, target, slack, check_tangential,
-                var, coef, a, x, impulse, dv):
-    """Solve one case of :func:`best_impulse` (normal_mask, tangential modes) into dv.
-
-    Returns True when the case is solvable and admissible: its normal impulses push, a contact
-    without impulse leaves on its own, and (``check_tangential``) each target lies inside its
-    cone and each edge impulse falls short of its target.
-    """
-    m = 0
-    for r in range(rows):
-        var[r] = -1
-        if (r < 2 and normal_mask & (1 << r)) or (r >= 2 and mode[r] == 0):
-            var[r] = m
-            m += 1
-    for r in range(rows):
-        for v in range(m):
-            coef[r, v] = 0.0
-        if var[r] >= 0:
-            coef[r, var[r]] = 1.0
-        elif r >= 2:  # on an edge: +-mu times the normal impulses it belongs to
-            sign = 1.0 if mode[r] == 1 else -1.0
-            for i in range(2):
-                if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
-                    coef[r, var[i]] = sign * mu
-    # one equation per unknown: that row's velocity reaches its target
-    zero = dv  # dv is zeroed below, after its use as the "no change" vector here
-    zero[0] = 0.0
-    zero[1] = 0.0
-    zero[2] = 0.0
-    eq = 0
-    for r in range(rows):
-        if var[r] < 0:
-            continue
-        for v in range(m):
-            acc = 0.0
-            for q in range(rows):
-                if coef[q, v] != 0.0:
-                    k_rq = jac[r, 0] * jac[q, 0] + jac[r, 1] * jac[q, 1] + jac[r, 2] * jac[q, 2] / inertia
-                    acc += k_rq * coef[q, v]
-            a[eq, v] = acc
-        x[eq] = target[r] - _velocity(jac, r, s, zero)
-        eq += 1
-    if not _solve_in_place(a, x, m):
-        return False
-    dv[0] = 0.0
-    dv[1] = 0.0
-    dv[2] = 0.0
-    for r in range(rows):
-        acc = 0.0
-        for v in range(m):
-            acc += coef[r, v] * x[v]
-        impulse[r] = acc
-        dv[0] += acc * jac[r, 0]
-        dv[1] += acc * jac[r, 1]
-        dv[2] += acc * jac[r, 2] / inertia
-    ok = True
-    for i in range(2):
-        if var[i] >= 0:
-            ok = ok and impulse[i] >= -slack  # pushes
-        else:
-            ok = ok and _velocity(jac, i, s, dv) >= target[i] - slack  # leaves on its own
-    if not check_tangential:
-        return ok
-    for r in range(2, rows):
-        if mode[r] == 0:
-            pressing = 0.0
-            for i in range(2):
-                if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
-                    pressing += impulse[i]
-            ok = ok and (math.isinf(mu) or abs(impulse[r]) <= mu * pressing + slack)
-        elif mode[r] == 1:  # the + edge falls short of the target
-            ok = ok and _velocity(jac, r, s, dv) <= target[r] + slack
-        else:
-            ok = ok and _velocity(jac, r, s, dv) >= target[r] - slack
-    return ok
-
-
-@numba.njit(cache=True)
 def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, best_dv, sliding=False):
     """Enumerate the cases of a two-contact impact (module docstring).
 
@@ -300,8 +222,8 @@ def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, b
     sliding : bool
         The textbook sliding branch (friction_rule "sliding"): in the chosen case, a tangential
         row on an edge of its cone is moved to the edge opposing that row's incoming tangential
-        velocity and the case solved again; if that case pulls or leaves a contact
-        approaching, no case is admissible (a jam, as for one contact).
+        velocity and the case solved once more (the "forced" pass); if that case pulls or
+        leaves a contact approaching, no case is admissible (a jam, as for one contact).
 
     Returns
     -------
@@ -330,56 +252,126 @@ def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, b
     # only a zero impulse (the "+ edge" of a zero cone) without friction
     first_mode = 1 if mu == 0.0 else 0
     last_mode = 0 if math.isinf(mu) else (1 if mu == 0.0 else 2)
+    n_modes = last_mode - first_mode + 1
     best_energy = math.inf
     best_mask = 0
     best_case = 0
-    for normal_mask in range(1, 4):
-        rows = 2 if frictionless else _tangential_rows(jac, owner, contacts, normal_mask, same_surface)
-        for r in range(2, rows):
-            target[r] = -beta_t * _velocity(jac, r, s, zero)
-        n_modes = last_mode - first_mode + 1
-        n_cases = n_modes ** (rows - 2)
-        for case in range(n_cases):
-            code = case
+    # One loop, one copy of the case's solve (each copy is compiled anew: cold start): the
+    # enumeration, normal_mask 1 to 3, then at most one forced pass of the sliding branch.
+    normal_mask = 0
+    rows = 2
+    n_cases = 0
+    case = 0
+    forced = False
+    while True:
+        if case >= n_cases:  # the next normal mask, or the end of the enumeration
+            normal_mask += 1
+            if normal_mask == 4:
+                if not sliding or frictionless or math.isinf(best_energy) or mu == 0.0 or math.isinf(mu):
+                    return best_energy
+                # the sliding branch: the chosen case, each edge row opposing its incoming slip
+                normal_mask = best_mask
+                case = best_case
+                forced = True
+            rows = 2 if frictionless else _tangential_rows(jac, owner, contacts, normal_mask, same_surface)
             for r in range(2, rows):
-                mode[r] = first_mode + code % n_modes
-                code //= n_modes
-            if not _solve_case(s, inertia, mu, jac, owner, rows, normal_mask, mode, target, slack, True,
-                               var, coef, a, x, impulse, dv):
+                target[r] = -beta_t * _velocity(jac, r, s, zero)
+            n_cases = n_modes ** (rows - 2)
+            if not forced:
+                case = 0
+        code = case
+        flipped = False
+        for r in range(2, rows):
+            mode[r] = first_mode + code % n_modes
+            code //= n_modes
+            if forced and mode[r] != 0:
+                u_row = _velocity(jac, r, s, zero)
+                if u_row != 0.0:
+                    opposing = 2 if u_row > 0.0 else 1
+                    flipped = flipped or mode[r] != opposing
+                    mode[r] = opposing
+        case += 1
+        if forced and not flipped:
+            return best_energy  # the chosen edges already oppose the slip
+        m = 0
+        for r in range(rows):
+            var[r] = -1
+            if (r < 2 and normal_mask & (1 << r)) or (r >= 2 and mode[r] == 0):
+                var[r] = m
+                m += 1
+        for r in range(rows):
+            for v in range(m):
+                coef[r, v] = 0.0
+            if var[r] >= 0:
+                coef[r, var[r]] = 1.0
+            elif r >= 2:  # on an edge: +-mu times the normal impulses it belongs to
+                sign = 1.0 if mode[r] == 1 else -1.0
+                for i in range(2):
+                    if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
+                        coef[r, var[i]] = sign * mu
+        # one equation per unknown: that row's velocity reaches its target
+        eq = 0
+        for r in range(rows):
+            if var[r] < 0:
                 continue
-            energy = _energy_change(s, inertia, dv)
-            if energy < best_energy:
-                best_energy = energy
-                best_mask = normal_mask
-                best_case = case
-                best_dv[0] = dv[0]
-                best_dv[1] = dv[1]
-                best_dv[2] = dv[2]
-    if not sliding or frictionless or math.isinf(best_energy) or mu == 0.0 or math.isinf(mu):
-        return best_energy
-    # the sliding branch: rebuild the chosen case, each edge row opposing its incoming slip
-    rows = _tangential_rows(jac, owner, contacts, best_mask, same_surface)
-    n_modes = last_mode - first_mode + 1
-    code = best_case
-    flipped = False
-    for r in range(2, rows):
-        mode[r] = first_mode + code % n_modes
-        code //= n_modes
-        u_row = _velocity(jac, r, s, zero)
-        target[r] = -beta_t * u_row
-        if mode[r] != 0 and u_row != 0.0:
-            opposing = 2 if u_row > 0.0 else 1
-            flipped = flipped or mode[r] != opposing
-            mode[r] = opposing
-    if not flipped:
-        return best_energy
-    if not _solve_case(s, inertia, mu, jac, owner, rows, best_mask, mode, target, slack, False,
-                       var, coef, a, x, impulse, dv):
-        return math.inf
-    best_dv[0] = dv[0]
-    best_dv[1] = dv[1]
-    best_dv[2] = dv[2]
-    return _energy_change(s, inertia, dv)
+            for v in range(m):
+                acc = 0.0
+                for q in range(rows):
+                    if coef[q, v] != 0.0:
+                        k_rq = jac[r, 0] * jac[q, 0] + jac[r, 1] * jac[q, 1] + jac[r, 2] * jac[q, 2] / inertia
+                        acc += k_rq * coef[q, v]
+                a[eq, v] = acc
+            x[eq] = target[r] - _velocity(jac, r, s, zero)
+            eq += 1
+        if not _solve_in_place(a, x, m):
+            if forced:
+                return math.inf
+            continue
+        dv[0] = 0.0
+        dv[1] = 0.0
+        dv[2] = 0.0
+        for r in range(rows):
+            acc = 0.0
+            for v in range(m):
+                acc += coef[r, v] * x[v]
+            impulse[r] = acc
+            dv[0] += acc * jac[r, 0]
+            dv[1] += acc * jac[r, 1]
+            dv[2] += acc * jac[r, 2] / inertia
+        ok = True
+        for i in range(2):
+            if var[i] >= 0:
+                ok = ok and impulse[i] >= -slack  # pushes
+            else:
+                ok = ok and _velocity(jac, i, s, dv) >= target[i] - slack  # leaves on its own
+        if forced:  # the sliding branch's edges are not tested against the targets
+            if not ok:
+                return math.inf  # a jam: the caller takes the frictionless impulse
+            best_dv[0] = dv[0]
+            best_dv[1] = dv[1]
+            best_dv[2] = dv[2]
+            return _energy_change(s, inertia, dv)
+        for r in range(2, rows):
+            if mode[r] == 0:
+                pressing = 0.0
+                for i in range(2):
+                    if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
+                        pressing += impulse[i]
+                ok = ok and (math.isinf(mu) or abs(impulse[r]) <= mu * pressing + slack)
+            elif mode[r] == 1:  # the + edge falls short of the target
+                ok = ok and _velocity(jac, r, s, dv) <= target[r] + slack
+            else:
+                ok = ok and _velocity(jac, r, s, dv) >= target[r] - slack
+        if not ok:
+            continue
+        energy = _energy_change(s, inertia, dv)
+        if energy < best_energy:
+            best_energy = energy
+            best_mask = normal_mask
+            best_case = case - 1
+            best_dv[0] = dv[0]
+            best_dv[1] = dv[1]
+            best_dv[2] = dv[2]
 
 
 @numba.njit(cache=True)
