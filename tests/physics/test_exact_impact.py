@@ -216,6 +216,15 @@ def test_newton_energy_gain_is_replaced_by_the_energetic_impulse_and_counted():
             assert energy_change(u, k, np.array(reference_impact(u_t, u_n, k, beta_n, mu, False))) > 0
             assert (p_t, p_n) == kernel(u_t, u_n, k, beta_n, mu, True)[:2]
     assert found > 0
+    # through resolve_impact the replacement is counted as an energy clip
+    fpar, ipar = make_params(sides=4, model="rigid", beta_n=1.0, friction=0.3, friction_rule="exact")
+    counts = np.zeros(N_COUNTS, np.int32)
+    for _ in range(2000):
+        s = np.array([0.0, 0.1, rng.uniform(-math.pi, math.pi), *rng.uniform(-2, 2, 2), rng.uniform(-100, 100)])
+        corner = int(rng.integers(4))
+        if corner_normal_velocity(s, *corner_vector(s, fpar, corner), 0.0, 1.0) < 0:
+            resolve_impact(s, fpar, ipar, SURF_TABLE, corner, counts)
+    assert counts[C_CLIPS] > 0
 
 
 # --- through resolve_impact: every surface, loaded dice, both laws -------------------------
