@@ -356,14 +356,17 @@ def test_two_contact_sliding_opposes_the_slip_and_exact_sticks():
     assert s[3] + s[5] * apothem == pytest.approx(0.0, abs=1e-12)  # the midpoint below the centre
 
 
-def test_two_contact_exact_is_one_contacts_exact_impact_when_the_other_needs_none():
+@pytest.mark.parametrize("restitution", ["newton", "energetic"])
+def test_two_contact_exact_is_one_contacts_exact_impact_when_the_other_needs_none(restitution):
     """A hexagon landing flat with spin (for a square an impulse at one corner drives the other
     down, h^2 m / I = 1.5 > 1; for a hexagon 0.6): when one corner's exact impact (the solve_ivp reference,
     applied with plain numpy) leaves the other corner at least as fast as Newton asks, the
     two-contact exact rule gives that impact (of two such, the more dissipative)."""
     rng = np.random.default_rng(23)
     sides, beta_n, mu = 6, 0.5, 0.3
-    fpar, ipar = make_params(sides=sides, model="rigid", beta_n=beta_n, friction=mu, friction_rule="exact")
+    fpar, ipar = make_params(sides=sides, model="rigid", beta_n=beta_n, friction=mu, friction_rule="exact",
+                             restitution=restitution)
+    energetic = restitution == "energetic"
     inertia = fpar[FP_INERTIA]
     matched = 0
     for _ in range(60):
@@ -376,7 +379,7 @@ def test_two_contact_exact_is_one_contacts_exact_impact_when_the_other_needs_non
         candidates = []
         for i in (0, 1):
             k = mass_matrix(inertia, -r[i][1], r[i][0])
-            p_t, p_n = reference_impact(u[i][0], u[i][1], k, beta_n, mu, False)
+            p_t, p_n = reference_impact(u[i][0], u[i][1], k, beta_n, mu, energetic)
             if energy_change(u[i], k, np.array([p_t, p_n])) > 0:
                 continue  # Newton's gain: the kernel would clip; not this test's case
             v = s[3:].copy() + [p_t, p_n, (r[i][0] * p_n - r[i][1] * p_t) / inertia]
