@@ -21,6 +21,10 @@ dT = P . u + P^T K P / 2, so the law checks it and, when it is positive or the n
 would pull, moves the impulse towards the frictionless one (a purely normal impulse meeting
 the same normal condition, which never gains energy) just as far as needed: an "energy clip".
 Every impulse on that segment meets the normal condition and lies inside the friction cone.
+
+``[contact] friction_rule`` (ipar[IP_FRICTION_RULE]) picks the rule: "aimed" (the above),
+"sliding" (the textbook branch P_t = -sign(u_t) mu P_n, same jam rule and clip) or "exact"
+(the integrated Coulomb impact, physics/exact_impact.py, with ``[contact] restitution``).
 """
 
 import math
@@ -38,9 +42,19 @@ from dice_sweep.physics.params import (
     FP_MU,
     FP_R,
     FP_WALL,
+    IP_FRICTION_RULE,
     IP_MODEL,
+    IP_RESTITUTION,
 )
-from dice_sweep.physics.layout import C_CLIPS, C_FALLBACK, MODEL_PAPER
+from dice_sweep.physics.exact_impact import exact_corner_impulse
+from dice_sweep.physics.layout import (
+    C_CLIPS,
+    C_FALLBACK,
+    FRICTION_RULE_EXACT,
+    FRICTION_RULE_SLIDING,
+    MODEL_PAPER,
+    RESTITUTION_ENERGETIC,
+)
 
 
 @numba.njit(cache=True)
@@ -95,9 +109,11 @@ def apply_impulse(s, inertia, rx, ry, p_t, p_n, nx, ny):
 
 
 @numba.njit(cache=True)
-def corner_impulse(s, inertia, beta_n, beta_t, mu, rx, ry, nx, ny):
+def corner_impulse(s, inertia, beta_n, beta_t, mu, rx, ry, nx, ny, sliding=False):
     """Impulse at the corner (rx, ry) with restitution targets and a Coulomb cap mu.
 
+    ``sliding``: a capped impulse takes the textbook sliding branch, the cone's edge opposing the
+    incoming slip (friction_rule "sliding"), instead of the edge on the target's side ("aimed").
     Modifies s in place. Returns 1 when the impulse had to be moved towards the frictionless
     one to keep the impact from creating energy or pulling on the surface, else 0.
     """
@@ -122,6 +138,8 @@ def corner_impulse(s, inertia, beta_n, beta_t, mu, rx, ry, nx, ny):
     if not math.isinf(mu) and (p_n <= 0.0 or abs(p_t) > mu * p_n):
         # on the cone's edge, on the side of the target impulse (see the module docstring)
         side = 1.0 if p_t > 0.0 else -1.0 if p_t < 0.0 else (-1.0 if u_t > 0.0 else 1.0)
+        if sliding and u_t != 0.0:  # the textbook branch: opposing the incoming slip
+            side = -1.0 if u_t > 0.0 else 1.0
         denom = k_nn + side * mu * k_tn
         if denom > 0.0:
             p_n = du_n / denom
@@ -160,7 +178,10 @@ def resolve_impact(s, fpar, ipar, surf, corner, counts):
     leaves the touching corner not approaching; otherwise the paper's case is undefined (a
     corner driven in by rotation while the centre moves away, or a law that would keep
     pushing the corner in) and the impulse at the corner is used (counted). Model "rigid":
-    always the impulse at the corner. beta_normal falls with the impact speed as
+    always the impulse at the corner. The impulse at the corner follows ``[contact]
+    friction_rule``: "aimed" and "sliding" are :func:`corner_impulse`'s two ways to meet the
+    Coulomb cap, "exact" the integrated Coulomb impact of :mod:`exact_impact` (with ``[contact]
+    restitution``; beta_tangential unused). beta_normal falls with the impact speed as
     beta_normal / (1 + k |u_n|) (k = 0: constant). Returns the corner's normal velocity
     after the impact (m/s).
     """
@@ -184,7 +205,13 @@ def resolve_impact(s, fpar, ipar, surf, corner, counts):
             s[4] = saved4
             s[5] = saved5
         counts[C_FALLBACK] += 1
-    counts[C_CLIPS] += corner_impulse(s, fpar[FP_INERTIA], beta_n, beta_t, fpar[FP_MU], rx, ry, nx, ny)
+    rule = ipar[IP_FRICTION_RULE]
+    if rule == FRICTION_RULE_EXACT:
+        energetic = ipar[IP_RESTITUTION] == RESTITUTION_ENERGETIC
+        counts[C_CLIPS] += exact_corner_impulse(s, fpar[FP_INERTIA], beta_n, fpar[FP_MU], energetic, rx, ry, nx, ny)
+    else:
+        counts[C_CLIPS] += corner_impulse(s, fpar[FP_INERTIA], beta_n, beta_t, fpar[FP_MU], rx, ry, nx, ny,
+                                          rule == FRICTION_RULE_SLIDING)
     return corner_normal_velocity(s, rx, ry, nx, ny)
 
 

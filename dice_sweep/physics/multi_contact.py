@@ -25,6 +25,20 @@ frictionless case always has a solution (its matrix is positive definite) and ne
 energy. When the chosen impulse would gain energy it is moved towards the frictionless one, as
 far as needed (an energy clip, as for one contact).
 
+Friction rules (``[contact] friction_rule``). "aimed": the edges as above. "sliding": the
+textbook sliding branch; the enumeration chooses the case as above, and a tangential row it put
+on an edge is moved to the edge opposing that row's incoming tangential velocity and the case
+solved again (with one contact this is impact.corner_impulse's sliding branch); if that case
+pulls or leaves a contact approaching it is a jam and the frictionless impulse is used.
+"exact": the integrated Coulomb impact is single-contact only (physics/exact_impact.py).
+With two contacts: when one contact's exact impact leaves the other no slower than Newton's
+law asks (the other needs no impulse), that impact is the answer (of two, the more
+dissipative). Otherwise the enumeration with the sliding rule and the sticking target
+u_t' = 0 in place of -beta_tangential u_t, and Newton restitution whatever ``[contact]
+restitution`` says: the exact law's incoming slide and its sticking end. That misses slip
+reversal within an impact that both contacts carry, and the energetic law's phase coupling
+(docs/physics.md, "Friction rules").
+
 Paper law. Eqs 9-13 depend only on the surface, not on the corner, so two corners on one
 surface get one application of the law. It stands when the centre approaches the surface
 and neither corner is left approaching; otherwise, and for contacts on two surfaces, the rigid
@@ -38,8 +52,20 @@ import numpy as np
 
 from dice_sweep.physics.flight import corner_offset, surface_frame
 from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, beta_normal_at, corner_normal_velocity, paper_law, resolve_impact
-from dice_sweep.physics.params import FP_ALPHA, FP_BT, FP_INERTIA, FP_MU, FP_R, FP_RHO_MAX, FP_WALL, IP_MODEL
-from dice_sweep.physics.layout import MODEL_PAPER
+from dice_sweep.physics.exact_impact import exact_corner_impulse
+from dice_sweep.physics.params import (
+    FP_ALPHA,
+    FP_BT,
+    FP_INERTIA,
+    FP_MU,
+    FP_R,
+    FP_RHO_MAX,
+    FP_WALL,
+    IP_FRICTION_RULE,
+    IP_MODEL,
+    IP_RESTITUTION,
+)
+from dice_sweep.physics.layout import FRICTION_RULE_AIMED, FRICTION_RULE_EXACT, MODEL_PAPER, RESTITUTION_ENERGETIC
 
 MAX_ROWS = 4  # two normal rows and at most two tangential rows
 # Relative slack of the admissibility tests: round-off of the 4 x 4 solves, not physics.
@@ -173,7 +199,7 @@ def _tangential_rows(jac, owner, contacts, normal_mask, same_surface):
 
 
 @numba.njit(cache=True)
-def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, best_dv):
+def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, best_dv, sliding=False):
     """Enumerate the cases of a two-contact impact (module docstring).
 
     Parameters
@@ -193,6 +219,11 @@ def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, b
         No tangential impulse (the reference of the energy clip).
     best_dv : float64[3]
         Output: (dvx, dvy, domega) of the chosen case.
+    sliding : bool
+        The textbook sliding branch (friction_rule "sliding"): in the chosen case, a tangential
+        row on an edge of its cone is moved to the edge opposing that row's incoming tangential
+        velocity and the case solved once more (the "forced" pass); if that case pulls or
+        leaves a contact approaching, no case is admissible (a jam, as for one contact).
 
     Returns
     -------
@@ -221,87 +252,126 @@ def best_impulse(s, inertia, mu, beta_t, contacts, same_surface, frictionless, b
     # only a zero impulse (the "+ edge" of a zero cone) without friction
     first_mode = 1 if mu == 0.0 else 0
     last_mode = 0 if math.isinf(mu) else (1 if mu == 0.0 else 2)
+    n_modes = last_mode - first_mode + 1
     best_energy = math.inf
-    for normal_mask in range(1, 4):
-        rows = 2 if frictionless else _tangential_rows(jac, owner, contacts, normal_mask, same_surface)
+    best_mask = 0
+    best_case = 0
+    # One loop, one copy of the case's solve (each copy is compiled anew: cold start): the
+    # enumeration, normal_mask 1 to 3, then at most one forced pass of the sliding branch.
+    normal_mask = 0
+    rows = 2
+    n_cases = 0
+    case = 0
+    forced = False
+    while True:
+        if case >= n_cases:  # the next normal mask, or the end of the enumeration
+            normal_mask += 1
+            if normal_mask == 4:
+                if not sliding or frictionless or math.isinf(best_energy) or mu == 0.0 or math.isinf(mu):
+                    return best_energy
+                # the sliding branch: the chosen case, each edge row opposing its incoming slip
+                normal_mask = best_mask
+                case = best_case
+                forced = True
+            rows = 2 if frictionless else _tangential_rows(jac, owner, contacts, normal_mask, same_surface)
+            for r in range(2, rows):
+                target[r] = -beta_t * _velocity(jac, r, s, zero)
+            n_cases = n_modes ** (rows - 2)
+            if not forced:
+                case = 0
+        code = case
+        flipped = False
         for r in range(2, rows):
-            target[r] = -beta_t * _velocity(jac, r, s, zero)
-        n_modes = last_mode - first_mode + 1
-        n_cases = n_modes ** (rows - 2)
-        for case in range(n_cases):
-            code = case
-            for r in range(2, rows):
-                mode[r] = first_mode + code % n_modes
-                code //= n_modes
-            m = 0
-            for r in range(rows):
-                var[r] = -1
-                if (r < 2 and normal_mask & (1 << r)) or (r >= 2 and mode[r] == 0):
-                    var[r] = m
-                    m += 1
-            for r in range(rows):
-                for v in range(m):
-                    coef[r, v] = 0.0
-                if var[r] >= 0:
-                    coef[r, var[r]] = 1.0
-                elif r >= 2:  # on an edge: +-mu times the normal impulses it belongs to
-                    sign = 1.0 if mode[r] == 1 else -1.0
-                    for i in range(2):
-                        if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
-                            coef[r, var[i]] = sign * mu
-            # one equation per unknown: that row's velocity reaches its target
-            eq = 0
-            for r in range(rows):
-                if var[r] < 0:
-                    continue
-                for v in range(m):
-                    acc = 0.0
-                    for q in range(rows):
-                        if coef[q, v] != 0.0:
-                            k_rq = jac[r, 0] * jac[q, 0] + jac[r, 1] * jac[q, 1] + jac[r, 2] * jac[q, 2] / inertia
-                            acc += k_rq * coef[q, v]
-                    a[eq, v] = acc
-                x[eq] = target[r] - _velocity(jac, r, s, zero)
-                eq += 1
-            if not _solve_in_place(a, x, m):
+            mode[r] = first_mode + code % n_modes
+            code //= n_modes
+            if forced and mode[r] != 0:
+                u_row = _velocity(jac, r, s, zero)
+                if u_row != 0.0:
+                    opposing = 2 if u_row > 0.0 else 1
+                    flipped = flipped or mode[r] != opposing
+                    mode[r] = opposing
+        case += 1
+        if forced and not flipped:
+            return best_energy  # the chosen edges already oppose the slip
+        m = 0
+        for r in range(rows):
+            var[r] = -1
+            if (r < 2 and normal_mask & (1 << r)) or (r >= 2 and mode[r] == 0):
+                var[r] = m
+                m += 1
+        for r in range(rows):
+            for v in range(m):
+                coef[r, v] = 0.0
+            if var[r] >= 0:
+                coef[r, var[r]] = 1.0
+            elif r >= 2:  # on an edge: +-mu times the normal impulses it belongs to
+                sign = 1.0 if mode[r] == 1 else -1.0
+                for i in range(2):
+                    if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
+                        coef[r, var[i]] = sign * mu
+        # one equation per unknown: that row's velocity reaches its target
+        eq = 0
+        for r in range(rows):
+            if var[r] < 0:
                 continue
-            dv[0] = 0.0
-            dv[1] = 0.0
-            dv[2] = 0.0
-            for r in range(rows):
+            for v in range(m):
                 acc = 0.0
-                for v in range(m):
-                    acc += coef[r, v] * x[v]
-                impulse[r] = acc
-                dv[0] += acc * jac[r, 0]
-                dv[1] += acc * jac[r, 1]
-                dv[2] += acc * jac[r, 2] / inertia
-            ok = True
-            for i in range(2):
-                if var[i] >= 0:
-                    ok = ok and impulse[i] >= -slack  # pushes
-                else:
-                    ok = ok and _velocity(jac, i, s, dv) >= target[i] - slack  # leaves on its own
-            for r in range(2, rows):
-                if mode[r] == 0:
-                    pressing = 0.0
-                    for i in range(2):
-                        if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
-                            pressing += impulse[i]
-                    ok = ok and (math.isinf(mu) or abs(impulse[r]) <= mu * pressing + slack)
-                elif mode[r] == 1:  # the + edge falls short of the target
-                    ok = ok and _velocity(jac, r, s, dv) <= target[r] + slack
-                else:
-                    ok = ok and _velocity(jac, r, s, dv) >= target[r] - slack
+                for q in range(rows):
+                    if coef[q, v] != 0.0:
+                        k_rq = jac[r, 0] * jac[q, 0] + jac[r, 1] * jac[q, 1] + jac[r, 2] * jac[q, 2] / inertia
+                        acc += k_rq * coef[q, v]
+                a[eq, v] = acc
+            x[eq] = target[r] - _velocity(jac, r, s, zero)
+            eq += 1
+        if not _solve_in_place(a, x, m):
+            if forced:
+                return math.inf
+            continue
+        dv[0] = 0.0
+        dv[1] = 0.0
+        dv[2] = 0.0
+        for r in range(rows):
+            acc = 0.0
+            for v in range(m):
+                acc += coef[r, v] * x[v]
+            impulse[r] = acc
+            dv[0] += acc * jac[r, 0]
+            dv[1] += acc * jac[r, 1]
+            dv[2] += acc * jac[r, 2] / inertia
+        ok = True
+        for i in range(2):
+            if var[i] >= 0:
+                ok = ok and impulse[i] >= -slack  # pushes
+            else:
+                ok = ok and _velocity(jac, i, s, dv) >= target[i] - slack  # leaves on its own
+        if forced:  # the sliding branch's edges are not tested against the targets
             if not ok:
-                continue
-            energy = _energy_change(s, inertia, dv)
-            if energy < best_energy:
-                best_energy = energy
-                best_dv[0] = dv[0]
-                best_dv[1] = dv[1]
-                best_dv[2] = dv[2]
-    return best_energy
+                return math.inf  # a jam: the caller takes the frictionless impulse
+            best_dv[0] = dv[0]
+            best_dv[1] = dv[1]
+            best_dv[2] = dv[2]
+            return _energy_change(s, inertia, dv)
+        for r in range(2, rows):
+            if mode[r] == 0:
+                pressing = 0.0
+                for i in range(2):
+                    if var[i] >= 0 and (owner[r] == -1 or owner[r] == i):
+                        pressing += impulse[i]
+                ok = ok and (math.isinf(mu) or abs(impulse[r]) <= mu * pressing + slack)
+            elif mode[r] == 1:  # the + edge falls short of the target
+                ok = ok and _velocity(jac, r, s, dv) <= target[r] + slack
+            else:
+                ok = ok and _velocity(jac, r, s, dv) >= target[r] - slack
+        if not ok:
+            continue
+        energy = _energy_change(s, inertia, dv)
+        if energy < best_energy:
+            best_energy = energy
+            best_mask = normal_mask
+            best_case = case - 1
+            best_dv[0] = dv[0]
+            best_dv[1] = dv[1]
+            best_dv[2] = dv[2]
 
 
 @numba.njit(cache=True)
@@ -340,6 +410,45 @@ def resolve_two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, shar
     return True
 
 
+@numba.njit(cache=True)
+def _exact_alone(s, fpar, ipar, contacts, u_a, u_b, counts):
+    """The exact impact (physics/exact_impact.py) at one of the two contacts, when it leaves the
+    other at least as fast as Newton's law asks (u_n' >= -beta_n u_n, as for a contact without
+    impulse in :func:`best_impulse`); of two such, the one leaving less kinetic energy. Applied
+    to s in place; False, s untouched, when neither does."""
+    inertia = fpar[FP_INERTIA]
+    energetic = ipar[IP_RESTITUTION] == RESTITUTION_ENERGETIC
+    trial = np.empty(6)
+    best = np.empty(6)
+    best_energy = math.inf
+    best_clip = 0
+    for i in range(2):
+        u_i = u_a if i == 0 else u_b
+        if u_i >= 0.0:
+            continue
+        j = 1 - i
+        for k in range(6):
+            trial[k] = s[k]
+        beta_n = beta_normal_at(fpar, -u_i)
+        clip = exact_corner_impulse(trial, inertia, beta_n, fpar[FP_MU], energetic,
+                                    contacts[i, 2], contacts[i, 3], contacts[i, 0], contacts[i, 1])
+        u_j = corner_normal_velocity(trial, contacts[j, 2], contacts[j, 3], contacts[j, 0], contacts[j, 1])
+        if u_j < contacts[j, 4]:
+            continue  # the other contact would need an impulse of its own
+        energy = trial[3] * trial[3] + trial[4] * trial[4] + inertia * trial[5] * trial[5]
+        if energy < best_energy:
+            best_energy = energy
+            best_clip = clip
+            for k in range(6):
+                best[k] = trial[k]
+    if math.isinf(best_energy):
+        return False
+    for k in range(3, 6):
+        s[k] = best[k]
+    counts[C_CLIPS] += best_clip
+    return True
+
+
 # One call site per function below: numba links a callee's code into each caller and LLVM
 # inlines it per call site, so two calls of best_impulse compiled it twice (a cold start
 # 6 s longer; scripts/bench.py, cold).
@@ -374,8 +483,18 @@ def _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
     inertia = fpar[FP_INERTIA]
     changes = np.empty((2, 3))  # with friction, frictionless
     energies = np.empty(2)
+    # friction rules (module docstring): "exact" has no two-contact integration here; one
+    # contact's exact impact when it leaves the other separating, else the sliding edge with
+    # the sticking target u_t' = 0 (the exact law's incoming slide and its sticking end)
+    rule = ipar[IP_FRICTION_RULE]
+    if rule == FRICTION_RULE_EXACT and _exact_alone(s, fpar, ipar, contacts, u_a, u_b, counts):
+        if ipar[IP_MODEL] == MODEL_PAPER:
+            counts[C_FALLBACK] += 1
+        return True
+    beta_t = 0.0 if rule == FRICTION_RULE_EXACT else fpar[FP_BT]
+    sliding = rule != FRICTION_RULE_AIMED
     for k in range(2):
-        energies[k] = best_impulse(s, inertia, fpar[FP_MU], fpar[FP_BT], contacts, same_surface, k == 1, changes[k])
+        energies[k] = best_impulse(s, inertia, fpar[FP_MU], beta_t, contacts, same_surface, k == 1, changes[k], sliding)
     energy = energies[0]
     dv = changes[0]
     free = changes[1]
