@@ -261,9 +261,6 @@ EFFECTS = (
             ConfigKey("contact", "friction_rule", "aimed", "", choices=FRICTION_RULES, slot="IP_FRICTION_RULE",
                       help="how the rigid law meets the Coulomb cap: aimed (the cone's edge on the side of the aimed impulse), "
                            "sliding (opposing the incoming slip), exact (Routh's integration over the impact)"),
-            ConfigKey("contact", "restitution", "newton", "", choices=RESTITUTION_LAWS, slot="IP_RESTITUTION",
-                      help="restitution of the exact impact: newton (kinematic, u_n' = -beta_normal u_n) or energetic "
-                           "(Stronge: the restitution phase's work is beta_normal^2 the compression's)"),
         ),
         signature="impact_prediction",
         signature_note="frames predicted through an impact miss after sliding impacts whose slip the normal impulse reverses",
@@ -271,8 +268,14 @@ EFFECTS = (
     Effect(
         "exact_coulomb", "contact",
         "the exact Coulomb impact at the touching corner(s): the contact velocity integrated over the normal impulse "
-        "(Routh's method) with slip, stick and slip reversal, Newton restitution; no tangential restitution",
+        "(Routh's method) with slip, stick and slip reversal, Newton or energetic restitution ([contact] restitution); "
+        "no tangential restitution; two contacts at once by a documented fallback (docs/physics.md, \"Friction rules\")",
         switch=(("contact.model", "rigid"), ("contact.friction_rule", "exact")),
+        config_keys=(
+            ConfigKey("contact", "restitution", "newton", "", choices=RESTITUTION_LAWS, slot="IP_RESTITUTION",
+                      help="restitution of the exact impact: newton (kinematic, u_n' = -beta_normal u_n) or energetic "
+                           "(Stronge: the restitution phase's work is beta_normal^2 the compression's)"),
+        ),
         acts_with=("coulomb_friction",),
         drops=("beta_tangential",),
         signature="impact_prediction",
