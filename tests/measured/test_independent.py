@@ -566,9 +566,11 @@ def kernel_poses(truth, states, times):
         f"[die]\nsides = {truth.sides}\ncircumradius = {truth.circumradius!r}\n"
         f'[contact]\nmodel = "{truth.contact}"\nbeta_normal = {truth.beta_normal!r}\n'
         f"beta_tangential = {truth.beta_tangential!r}\nfriction = {truth.friction!r}\nwindow = {truth.window!r}\n"
+        f'friction_rule = "{truth.friction_rule}"\nrestitution = "{truth.restitution}"\n'
         f"[world]\ng = {truth.g!r}\n"
         f"[effects]\nair_drag = {truth.air_drag!r}\ncom_offset = [{truth.com_offset[0]!r}, {truth.com_offset[1]!r}]\n"
         f"speed_restitution = {truth.speed_restitution!r}\ncontact_time = {truth.contact_time!r}\n"
+        f"inertia = {truth.inertia!r}\ncorner_radius = {truth.corner_radius!r}\n"
         f"[integrator]\nt_max = {float(max(t[-1] for t in times if len(t))) + 0.01!r}\n"
     )
     fpar, ipar = pack_params(cfg)
@@ -599,11 +601,20 @@ KERNEL_CASES = {
     "speed_restitution paper": (_t("paper", beta_normal=0.6, speed_restitution=0.5), "fallback"),
     "hexagon, everything": (_t("rigid", sides=6, circumradius=0.03, beta_tangential=-0.3, friction=0.4, air_drag=0.2,
                                com_offset=(0.003, 0.002), speed_restitution=0.3), "capped"),
+    "inertia": (_t("rigid", inertia=0.85), "rigid"),
+    "inertia, loaded paper": (_t("paper", inertia=0.85, com_offset=(0.004, -0.002)), "fallback"),
+    # the kernel's support of these is on other branches (KERNEL_PENDING_CASES)
+    "sliding friction": (_t("rigid", friction=0.2, friction_rule="sliding"), "capped"),
+    "exact newton": (_t("rigid", friction=0.3, friction_rule="exact"), "reversal"),
+    "exact energetic": (_t("rigid", friction=0.3, friction_rule="exact", restitution="energetic"), "stick"),
+    "rounded corners": (_t("rigid", corner_radius=0.003), "rigid"),
 }
+KERNEL_PENDING = pytest.mark.xfail(reason="kernel support on another branch", strict=False)
+KERNEL_PENDING_CASES = ("sliding friction", "exact newton", "exact energetic", "rounded corners")
 KERNEL_TOL = (1e-8, 1e-7)  # m, rad; measured: at most 2e-12 m and 4e-11 rad (300 drops per case)
 
 
-@pytest.mark.parametrize("name", list(KERNEL_CASES))
+@pytest.mark.parametrize("name", [pytest.param(n, marks=KERNEL_PENDING) if n in KERNEL_PENDING_CASES else n for n in KERNEL_CASES])
 def test_agrees_with_the_kernel_over_the_first_three_impacts(name):
     truth, exercised = KERNEL_CASES[name]
     states = release_states(20, 1)
