@@ -13,16 +13,36 @@ What is simulated
   the rotation stays in closed form.
 * Impacts of one corner with the table (y = 0), by the ``paper`` law (eqs 9-13, with the
   documented fallback for its "undefined case 1") or the ``rigid`` corner impulse (Newton
-  restitution, tangential restitution, Coulomb cap on the cone edge on the target's side, the
-  energy rule). Contacts are located by conservative advancement on a lower bound of each
-  corner's height, to a height of 1e-12 R, i.e. a time error far below 1e-9 s.
+  restitution, tangential restitution, the Coulomb cap, the energy rule). Where the cap binds,
+  ``friction_rule`` says where the impulse goes: "aimed" (default), on the cone edge on the
+  side of the impulse aimed at the targets; "sliding", the textbook branch
+  P_t = -sign(u_t) mu P_n opposing the incoming slip (the aimed side when u_t = 0); both then
+  keep the energy rule. "exact" is the exact Coulomb impact (Routh's method; Stronge): the
+  contact velocity integrated over the normal impulse by scipy's solve_ivp with events for
+  stick (when |K_tn/K_tt| <= mu), slip reversal (otherwise), the end of compression and the
+  terminal condition, with ``restitution`` "newton" (u_n' = -beta_n u_n) or "energetic"
+  (restitution work = beta_n^2 times minus the compression work); beta_tangential is not used;
+  a Newton impact that would gain energy takes the energetic terminal; a sliding phase that
+  can never end (K_nn - mu s K_tn <= 0 with no stick ahead, only at large friction) is a jam
+  and takes the frictionless impulse. The paper law's fallback uses the same rule.
+  Contacts are located by conservative advancement on a lower bound of each corner's height,
+  to a height of 1e-12 R, i.e. a time error far below 1e-9 s.
+* ``inertia``: I about the COM is ``inertia`` times eq. 25's I about the geometric centre, less
+  M |com_offset|^2; it acts in every impact law (the paper law's alpha too).
+* ``corner_radius`` r (rounded corners): the die is a core polygon of circumradius
+  (a - r)/cos(pi/n) (a the apothem, kept; same corner directions) plus a disk of radius r.
+  Corner k touches the table when its arc centre (the core's corner k) is at height r; the
+  impulse acts at the contact point directly below the arc centre. The contact search uses
+  each arc centre's height less r. The paper law keeps its lever R below the centre.
 * Two corners on the table at once (docs/physics.md, "Two contacts at once"): a second corner
   that approaches and would arrive within ``window`` (s, at its present normal speed) joins the
   impact. Rigid law: Newton restitution at each contact where it pushes (otherwise the contact
   must leave at least that fast), one tangential impulse at the midpoint of the pressing corners
   with the target -beta_t u_t and a cap of friction times the summed normal impulses; of the
   admissible cases the one leaving the least kinetic energy, the energy rule towards the
-  frictionless one, the frictionless one on a jam. Paper law: one application of eqs 9-13
+  frictionless one, the frictionless one on a jam. With the "sliding" rule a case's edge is
+  admissible only where its target impulse leaves the cone, and only the edge opposing the
+  shared tangential row's incoming velocity. Paper law: one application of eqs 9-13
   (beta_normal of the faster approach) when the centre approaches and neither corner is left
   approaching, else the rigid two-contact law. Each case is solved here as a 3 x 3 linear system
   in the impulses (P_a, P_b, P_t) (``_two_corner_impulse``).
@@ -31,7 +51,8 @@ What is simulated
   the share 1 - d/T and the first corner's single-contact impulse the rest (the velocities are
   blended); the second corner, if it still approaches, has its own impact when it arrives.
 * Effects of the project's library: quadratic air drag on the COM, a loaded die (COM offset in
-  the body frame), speed-dependent normal restitution. Effects outside it: spin damping and a
+  the body frame), speed-dependent normal restitution, the inertia factor, rounded corners, the
+  friction rules (above). Effects outside it: spin damping and a
   Magnus force in flight. Measurement effects: a wrong clock, a wrong length scale and an angle
   offset, then Gaussian noise, dropped frames and one-frame glitches.
 
@@ -40,7 +61,11 @@ What is not simulated
 Sustained contact (resting, rocking about a corner, sliding flat) is not simulated. A track
 ends at an impact whose normal approach speed is below ``min_bounce_speed``, when an impulse
 would leave a touching corner (either of two at a flat landing) without a rebound or drive
-another touching corner into the table, or at ``duration``. Tracks therefore do **not** end
+another touching corner into the table, or at ``duration``. There is no two-contact exact
+Coulomb impact: with ``friction_rule`` "exact" a track ends (``end`` "exact_two_contacts")
+at an impact a second corner joins (within the window or the flat_landing contact time), and
+:func:`impact` refuses one. ``restitution`` "energetic" is defined for the exact rule only
+(ValueError otherwise). Tracks therefore do **not** end
 with the die at rest; they stop while it is still bouncing. Walls are not simulated.
 
 Conventions
@@ -722,7 +747,10 @@ def impact(truth, com_state, corner, second=None, share=1.0):
         The COM state just after the impact (positions unchanged).
     info : dict
         ``law`` ("paper", "fallback" or "rigid"), ``u_n`` and ``u_n_after`` (the corner's normal
-        velocity, m/s), ``beta_n`` (effective normal restitution), ``capped``, ``clipped``,
+        velocity, m/s), ``beta_n`` (effective normal restitution), ``capped``, ``clipped``
+        (with the exact rule ``capped`` means it slid for part of the impact, ``clipped`` that
+        it took the energetic terminal, and ``stick``, ``reversal``, ``jam``,
+        ``energetic_terminal`` are given),
         ``dT`` (J/kg); with a second corner also ``contacts`` (2), ``share``, ``u_n_second`` and
         ``u_n_second_after``; ``contacts`` 1 when there was none or no two-contact case was
         admissible.
@@ -798,7 +826,8 @@ class Path:
     t_end : float
         Time at which the path ends (s).
     end : str
-        "duration", "slow_impact", "no_rebound", "second_corner" or "stalled".
+        "duration", "slow_impact", "no_rebound", "second_corner", "exact_two_contacts" or
+        "stalled".
     """
 
     def __init__(self, truth):
