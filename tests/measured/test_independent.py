@@ -408,6 +408,20 @@ def test_exact_energetic_restitution_balances_the_normal_work():
     assert _corner_velocity(after, r)[1] == pytest.approx(slope * (pf - pc), abs=1e-12)
 
 
+def test_exact_newton_impact_that_would_gain_energy_takes_the_energetic_terminal():
+    # sticking with Newton restitution near 1 at a tilted corner: Newton's terminal gains energy
+    e, mu = 0.997, 1.02
+    s, r = corner_down(-0.63, 0.61, -1.0, 0.0)
+    K = _k_matrix(r, ALPHA * R**2)
+    u0 = _corner_velocity(s, r)
+    P, raw = ind._exact_impulse(K, u0, e, mu, "newton")
+    assert raw["stick"] and raw["dT"] > 0.01  # the configuration: Newton alone gains energy
+    after, info = impact(Truth(beta_normal=e, friction=mu, friction_rule="exact"), s, 0)
+    energetic, _ = impact(Truth(beta_normal=e, friction=mu, friction_rule="exact", restitution="energetic"), s, 0)
+    assert info["clipped"] and info["energetic_terminal"] and info["dT"] <= 0.0
+    assert np.array_equal(after, energetic)
+
+
 def test_sliding_rule_opposes_the_slip_where_the_normal_impulse_throws_the_corner_back():
     e, mu, tilt = 0.4, 0.1, 0.3
     i = ALPHA * R**2
