@@ -22,9 +22,8 @@ What is simulated
   stick (when |K_tn/K_tt| <= mu), slip reversal (otherwise), the end of compression and the
   terminal condition, with ``restitution`` "newton" (u_n' = -beta_n u_n) or "energetic"
   (restitution work = beta_n^2 times minus the compression work); beta_tangential is not used;
-  a Newton impact that would gain energy takes the energetic terminal; a sliding phase that
-  can never end (K_nn - mu s K_tn <= 0 with no stick ahead, only at large friction) is a jam
-  and takes the frictionless impulse. The paper law's fallback uses the same rule.
+  a Newton impact that would gain energy takes the energetic terminal. The paper law's
+  fallback uses the same rule.
   Contacts are located by conservative advancement on a lower bound of each corner's height,
   to a height of 1e-12 R, i.e. a time error far below 1e-9 s.
 * ``inertia``: I about the COM is ``inertia`` times eq. 25's I about the geometric centre, less
@@ -440,9 +439,10 @@ def _exact_impulse(K, u, beta_n, mu, restitution, *, terminal=None):
     u_n = -beta_n u_n(0) ("newton") or when the restitution phase's work is beta_n^2 (-W_c)
     ("energetic"). A Newton impact that would gain energy takes the energetic terminal
     instead. With friction inf the slip is stopped at zero normal impulse (the limit of large
-    mu) and the contact sticks. A phase in which the normal velocity can no longer reach its
-    next event (sliding with K_nn + f K_nt <= 0, possible only for large friction) is a jam:
-    the frictionless impulse is used.
+    mu) and the contact sticks. A phase that never reached its next event would be a jam (the
+    frictionless impulse is then used), but with K positive definite none exists: a slip that
+    slows reaches u_t = 0, and one that speeds up needs |K_tn| > mu K_tt, where
+    K_nn - mu sign(u_t) K_tn > 0 and the normal velocity grows (a guard only).
 
     Parameters
     ----------
