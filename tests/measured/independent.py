@@ -13,16 +13,35 @@ What is simulated
   the rotation stays in closed form.
 * Impacts of one corner with the table (y = 0), by the ``paper`` law (eqs 9-13, with the
   documented fallback for its "undefined case 1") or the ``rigid`` corner impulse (Newton
-  restitution, tangential restitution, Coulomb cap on the cone edge on the target's side, the
-  energy rule). Contacts are located by conservative advancement on a lower bound of each
-  corner's height, to a height of 1e-12 R, i.e. a time error far below 1e-9 s.
+  restitution, tangential restitution, the Coulomb cap, the energy rule). Where the cap binds,
+  ``friction_rule`` says where the impulse goes: "aimed" (default), on the cone edge on the
+  side of the impulse aimed at the targets; "sliding", the textbook branch
+  P_t = -sign(u_t) mu P_n opposing the incoming slip (the aimed side when u_t = 0); both then
+  keep the energy rule. "exact" is the exact Coulomb impact (Routh's method; Stronge): the
+  contact velocity integrated over the normal impulse by scipy's solve_ivp with events for
+  stick (when |K_tn/K_tt| <= mu), slip reversal (otherwise), the end of compression and the
+  terminal condition, with ``restitution`` "newton" (u_n' = -beta_n u_n) or "energetic"
+  (restitution work = beta_n^2 times minus the compression work); beta_tangential is not used;
+  a Newton impact that would gain energy takes the energetic terminal. The paper law's
+  fallback uses the same rule.
+  Contacts are located by conservative advancement on a lower bound of each corner's height,
+  to a height of 1e-12 R, i.e. a time error far below 1e-9 s.
+* ``inertia``: I about the COM is ``inertia`` times eq. 25's I about the geometric centre, less
+  M |com_offset|^2; it acts in every impact law (the paper law's alpha too).
+* ``corner_radius`` r (rounded corners): the die is a core polygon of circumradius
+  (a - r)/cos(pi/n) (a the apothem, kept; same corner directions) plus a disk of radius r.
+  Corner k touches the table when its arc centre (the core's corner k) is at height r; the
+  impulse acts at the contact point directly below the arc centre. The contact search uses
+  each arc centre's height less r. The paper law keeps its lever R below the centre.
 * Two corners on the table at once (docs/physics.md, "Two contacts at once"): a second corner
   that approaches and would arrive within ``window`` (s, at its present normal speed) joins the
   impact. Rigid law: Newton restitution at each contact where it pushes (otherwise the contact
   must leave at least that fast), one tangential impulse at the midpoint of the pressing corners
   with the target -beta_t u_t and a cap of friction times the summed normal impulses; of the
   admissible cases the one leaving the least kinetic energy, the energy rule towards the
-  frictionless one, the frictionless one on a jam. Paper law: one application of eqs 9-13
+  frictionless one, the frictionless one on a jam. With the "sliding" rule a case's edge is
+  admissible only where its target impulse leaves the cone, and only the edge opposing the
+  shared tangential row's incoming velocity. Paper law: one application of eqs 9-13
   (beta_normal of the faster approach) when the centre approaches and neither corner is left
   approaching, else the rigid two-contact law. Each case is solved here as a 3 x 3 linear system
   in the impulses (P_a, P_b, P_t) (``_two_corner_impulse``).
@@ -31,7 +50,8 @@ What is simulated
   the share 1 - d/T and the first corner's single-contact impulse the rest (the velocities are
   blended); the second corner, if it still approaches, has its own impact when it arrives.
 * Effects of the project's library: quadratic air drag on the COM, a loaded die (COM offset in
-  the body frame), speed-dependent normal restitution. Effects outside it: spin damping and a
+  the body frame), speed-dependent normal restitution, the inertia factor, rounded corners, the
+  friction rules (above). Effects outside it: spin damping and a
   Magnus force in flight. Measurement effects: a wrong clock, a wrong length scale and an angle
   offset, then Gaussian noise, dropped frames and one-frame glitches.
 
@@ -40,7 +60,11 @@ What is not simulated
 Sustained contact (resting, rocking about a corner, sliding flat) is not simulated. A track
 ends at an impact whose normal approach speed is below ``min_bounce_speed``, when an impulse
 would leave a touching corner (either of two at a flat landing) without a rebound or drive
-another touching corner into the table, or at ``duration``. Tracks therefore do **not** end
+another touching corner into the table, or at ``duration``. There is no two-contact exact
+Coulomb impact: with ``friction_rule`` "exact" a track ends (``end`` "exact_two_contacts")
+at an impact a second corner joins (within the window or the flat_landing contact time), and
+:func:`impact` refuses one. ``restitution`` "energetic" is defined for the exact rule only
+(ValueError otherwise). Tracks therefore do **not** end
 with the die at rest; they stop while it is still bouncing. Walls are not simulated.
 
 Conventions
@@ -72,6 +96,10 @@ APPROACH_SPEED = 1e-9  # of sqrt(g R): a corner approaching slower than this is 
 CASE_SLACK = 1e-12  # of the fastest approach: round-off allowed in the admissibility of a two-contact case
 CASE_CONDITION = 1e12  # a two-contact case whose 3 x 3 system is worse conditioned than this is skipped
 MAX_CONTACT_TIME = 1e-3  # s: the documented range of the window and of the contact time
+FRICTION_RULES = ("aimed", "sliding", "exact")
+RESTITUTION_LAWS = ("newton", "energetic")
+EXACT_RTOL = 1e-12  # solve_ivp's relative tolerance over the normal impulse (the exact rule)
+EXACT_MAX_PHASES = 50  # phases (slip, stick, reversal, compression, restitution) of one exact impact
 
 
 @dataclass(frozen=True)
@@ -90,6 +118,10 @@ class Truth:
     speed_restitution: float = 0.0  # s/m, beta_normal / (1 + k |u_n|)
     window: float = 1e-6  # s, [contact] window: contacts arriving within it are one impact
     contact_time: float = 0.0  # s, the flat_landing effect (0: off)
+    inertia: float = 1.0  # I_com = inertia * eq. 25's I about the centre - M |com_offset|^2
+    friction_rule: str = "aimed"  # the corner impulse's Coulomb cap: "aimed", "sliding" or "exact"
+    restitution: str = "newton"  # the exact rule's restitution: "newton" or "energetic" (Stronge)
+    corner_radius: float = 0.0  # m, rounded corners (the sides keep the apothem)
     # measurement effects (what the tracker reports):
     angle_offset: float = 0.0  # rad, file phi = phi + offset
     time_scale: float = 1.0  # file t = t_true * time_scale (a clock that runs wrong)
@@ -121,15 +153,37 @@ class _Die:
         # Smith 2014 eq 25: I = M R^2 (sin^2(pi/n)/6 + cos^2(pi/n)/2) about the geometric centre
         alpha_centre = math.sin(math.pi / n) ** 2 / 6.0 + math.cos(math.pi / n) ** 2 / 2.0
         self.d = np.array(truth.com_offset, dtype=float)
-        if np.hypot(*self.d) >= radius * math.cos(math.pi / n):
+        apothem = radius * math.cos(math.pi / n)
+        if np.hypot(*self.d) >= apothem:
             raise ValueError("com_offset must lie inside the inscribed circle")
-        # parallel-axis rule: I_com = I - M |d|^2 (per unit mass, m^2)
-        self.inertia = alpha_centre * radius**2 - float(self.d @ self.d)
+        if truth.friction_rule not in FRICTION_RULES:
+            raise ValueError(f"friction_rule must be one of {FRICTION_RULES}, not {truth.friction_rule!r}")
+        if truth.restitution not in RESTITUTION_LAWS:
+            raise ValueError(f"restitution must be one of {RESTITUTION_LAWS}, not {truth.restitution!r}")
+        if truth.restitution != "newton" and truth.friction_rule != "exact":
+            raise ValueError("restitution 'energetic' is defined for friction_rule 'exact' only")
+        factor = float(truth.inertia)
+        if not (factor > 0.0 and factor * alpha_centre <= 1.0 + 1e-12):
+            raise ValueError(f"inertia must lie in (0, {1.0 / alpha_centre:.6g}] (all mass at the corners), not {truth.inertia!r}")
+        self.r_corner = float(truth.corner_radius)
+        if not 0.0 <= self.r_corner < apothem:
+            raise ValueError(f"corner_radius must lie in [0, {apothem!r}) m (below the apothem), not {truth.corner_radius!r}")
+        # parallel-axis rule: I_com = inertia * I - M |d|^2 (per unit mass, m^2)
+        self.inertia = factor * alpha_centre * radius**2 - float(self.d @ self.d)
+        if not self.inertia > 0.0:
+            raise ValueError("the moment of inertia about the centre of mass must be positive")
         self.alpha = self.inertia / radius**2  # I_com / (M R^2), the paper law's alpha
-        body = radius * np.column_stack([np.cos(2 * np.pi * np.arange(n) / n), np.sin(2 * np.pi * np.arange(n) / n)])
-        body = body - self.d  # corners seen from the COM, body frame
-        self.rho = np.hypot(body[:, 0], body[:, 1])  # m, distance of each corner from the COM
+        # rounded corners: the die is a core polygon of circumradius (a - r) / cos(pi/n), same
+        # corner directions, plus a disk of radius r; corner k's arc centre is the core's corner
+        # k (with r = 0 the core is the die itself, taken as R exactly)
+        core = radius if self.r_corner == 0.0 else (apothem - self.r_corner) / math.cos(math.pi / n)
+        self.core_radius = core
+        body = core * np.column_stack([np.cos(2 * np.pi * np.arange(n) / n), np.sin(2 * np.pi * np.arange(n) / n)])
+        body = body - self.d  # arc centres (the corners when r = 0) seen from the COM, body frame
+        self.rho = np.hypot(body[:, 0], body[:, 1])  # m, distance of each arc centre (corner) from the COM
         self.gamma = np.arctan2(body[:, 1], body[:, 0])  # rad, its body angle
+        self.rule = truth.friction_rule
+        self.restitution = truth.restitution
 
     def offset(self, phi):
         """The COM seen from the geometric centre in the world frame at angle ``phi`` (m)."""
@@ -149,9 +203,22 @@ class _Die:
         return np.array([x - ox, y - oy, phi, vx + w * oy, vy - w * ox, w])
 
     def corners(self, com_state):
-        """Corner positions relative to the COM, (n, 2) in m, for a COM state."""
+        """Each corner's table contact point relative to the COM, (n, 2) in m, for a COM state:
+        the corner itself, or with rounded corners the point of its arc directly below the arc
+        centre (where the arc touches the table; impacts act there)."""
         ang = com_state[2] + self.gamma
-        return self.rho[:, None] * np.column_stack([np.cos(ang), np.sin(ang)])
+        points = self.rho[:, None] * np.column_stack([np.cos(ang), np.sin(ang)])
+        points[:, 1] -= self.r_corner
+        return points
+
+    def heights(self, com_state):
+        """Height of each corner's lowest point above the table (m): its arc centre's height
+        less the corner radius."""
+        return com_state[1] + self.rho * np.sin(com_state[2] + self.gamma) - self.r_corner
+
+    def normal_speeds(self, com_state):
+        """d height / dt of each corner (m/s): the normal velocity of its contact point."""
+        return com_state[4] + self.rho * com_state[5] * np.cos(com_state[2] + self.gamma)
 
 
 def energy(truth, com_state):
@@ -261,9 +328,8 @@ def _next_contact(die, flight, t_start, t_stop):
         s = flight.state(t)
         phi, w = s[2], s[5]
         _, _, dw = flight.rotation(t - flight.t0)
-        ang = phi + die.gamma
-        height = s[1] + die.rho * np.sin(ang)
-        speed = s[4] + die.rho * w * np.cos(ang)  # d height / dt
+        height = die.heights(s)  # lowest arc centre height - r: a lower bound's margin is the same
+        speed = die.normal_speeds(s)  # d height / dt
         touching = (height <= tol) & (speed < 0.0)
         if touching.any():
             cand = np.flatnonzero(touching)
@@ -284,25 +350,38 @@ def _next_contact(die, flight, t_start, t_stop):
 # ----------------------------------------------------------------------------------- impacts
 
 
+def _contact_matrix(die, r):
+    """K = 1 + r_perp r_perp^T / I (per unit mass) of a contact at ``r`` from the COM, rows and
+    columns (tangential +x, normal +y): the contact velocity changes by K P."""
+    inv_i = 1.0 / die.inertia
+    # r_perp = z x r = (-r_y, r_x); the table's tangent is +x, its normal +y
+    return np.array([[1.0 + r[1] * r[1] * inv_i, -r[0] * r[1] * inv_i],
+                     [-r[0] * r[1] * inv_i, 1.0 + r[0] * r[0] * inv_i]])
+
+
 def _corner_impulse(die, r, u, beta_n, beta_t, mu):
     """Impulse per unit mass (P_t, P_n) at corner offset ``r`` (from the COM) on the table.
 
     Newton restitution u_n' = -beta_n u_n, tangential target u_t' = -beta_t u_t, through the
-    contact mass matrix K = 1 + r_perp r_perp^T / I; the Coulomb cap puts the impulse on the
-    cone edge on the target's side (frictionless impulse on a jam); the energy rule moves it
-    along the segment towards the frictionless impulse only as far as needed.
+    contact mass matrix K = 1 + r_perp r_perp^T / I; when the target impulse leaves the
+    Coulomb cone, the die's ``friction_rule`` says where the capped impulse lies: "aimed", on
+    the cone edge on the target's side; "sliding", on the edge opposing the incoming slip,
+    P_t = -sign(u_t) mu P_n (the target's side when u_t = 0); a jam (the edge cannot meet the
+    normal condition) takes the frictionless impulse. The energy rule then moves it along the
+    segment towards the frictionless impulse only as far as needed. "exact" is the exact
+    Coulomb impact instead (:func:`_exact_impulse`).
 
     Returns
     -------
     P : ndarray, shape (2,)
         (P_t, P_n), N s / kg.
     info : dict
-        ``capped``, ``clipped`` (energy rule used), ``dT`` (J/kg).
+        ``capped``, ``clipped`` (energy rule used), ``dT`` (J/kg); for the exact rule also
+        ``stick``, ``reversal``, ``jam`` and ``energetic_terminal`` (see :func:`_exact_impulse`).
     """
-    inv_i = 1.0 / die.inertia
-    # r_perp = z x r = (-r_y, r_x); the table's tangent is +x, its normal +y
-    K = np.array([[1.0 + r[1] * r[1] * inv_i, -r[0] * r[1] * inv_i],
-                  [-r[0] * r[1] * inv_i, 1.0 + r[0] * r[0] * inv_i]])
+    K = _contact_matrix(die, r)
+    if die.rule == "exact":
+        return _exact_corner_impulse(K, u, beta_n, mu, die.restitution)
     target = np.array([-beta_t * u[0], -beta_n * u[1]])
     P = np.linalg.solve(K, target - u)
     frictionless = np.array([0.0, -(1.0 + beta_n) * u[1] / K[1, 1]])
@@ -310,14 +389,17 @@ def _corner_impulse(die, r, u, beta_n, beta_t, mu):
     if math.isfinite(mu) and abs(P[0]) > mu * P[1]:
         capped = True
         sgn = math.copysign(1.0, P[0])
+        if die.rule == "sliding" and u[0] != 0.0:
+            sgn = -math.copysign(1.0, u[0])  # the textbook branch: opposing the incoming slip
         denom = K[1, 1] + sgn * mu * K[0, 1]
         if denom > 0.0:
             pn = -(1.0 + beta_n) * u[1] / denom
             P = np.array([sgn * mu * pn, pn])
         else:
-            # a jam, as the doc specifies. Unreachable here: the target meets the normal
-            # condition L(P) > 0 outside the cone on side sgn, and L is linear, so L of the
-            # edge direction, which is this denominator, is then positive as well.
+            # a jam, as the doc specifies. Unreachable for the aimed rule: the target meets the
+            # normal condition L(P) > 0 outside the cone on side sgn, and L is linear, so L of
+            # the edge direction, which is this denominator, is then positive as well. The
+            # sliding rule's edge can jam (friction large against the lever).
             P = frictionless.copy()
 
     def d_energy(p):
@@ -344,6 +426,139 @@ def _corner_impulse(die, r, u, beta_n, beta_t, mu):
     return P, {"capped": capped, "clipped": clipped, "dT": dT}
 
 
+def _exact_impulse(K, u, beta_n, mu, restitution, *, terminal=None):
+    """The exact Coulomb impact of one contact (Routh's method; Stronge, *Impact Mechanics*):
+    impulse per unit mass (P_t, P_n) and info.
+
+    The contact velocity u = (u_t, u_n) is integrated over the normal impulse p by scipy's
+    solve_ivp with events: du/dp = K (f, 1), dP_t/dp = f, with f = -mu sign(u_t) while the
+    contact slides. When u_t reaches 0 the contact sticks if |K_tn / K_tt| <= mu (then
+    f = -K_tn / K_tt keeps u_t = 0), else the slip reverses (to the side sign(K_tn), the only
+    one whose own friction keeps it going). The work of the normal force W = int u_n dp is
+    integrated alongside. Compression ends at u_n = 0 (work W_c); the impact ends at
+    u_n = -beta_n u_n(0) ("newton") or when the restitution phase's work is beta_n^2 (-W_c)
+    ("energetic"). A Newton impact that would gain energy takes the energetic terminal
+    instead. With friction inf the slip is stopped at zero normal impulse (the limit of large
+    mu) and the contact sticks. A phase that never reached its next event would be a jam (the
+    frictionless impulse is then used), but with K positive definite none exists: a slip that
+    slows reaches u_t = 0, and one that speeds up needs |K_tn| > mu K_tt, where
+    K_nn - mu sign(u_t) K_tn > 0 and the normal velocity grows (a guard only).
+
+    Parameters
+    ----------
+    K : ndarray (2, 2)
+        Contact matrix (tangential, normal) per unit mass.
+    u : ndarray (2,)
+        (u_t, u_n) before the impact, u_n < 0 (m/s).
+    terminal : str or None
+        Overrides ``restitution`` (used for the energy rule).
+    """
+    u = np.asarray(u, dtype=float)
+    law = terminal or restitution
+    un0 = float(u[1])
+    frictionless = np.array([0.0, -(1.0 + beta_n) * un0 / K[1, 1]])
+    info = {"capped": False, "clipped": False, "stick": False, "reversal": False, "jam": False,
+            "energetic_terminal": law == "energetic" and restitution == "newton"}
+
+    def finish(P):
+        info["dT"] = float(P @ u + 0.5 * P @ K @ P)
+        return P, info
+
+    if un0 >= 0.0:
+        return finish(np.zeros(2))
+    ktt, ktn, knn = float(K[0, 0]), float(K[0, 1]), float(K[1, 1])
+    if mu == 0.0:
+        sticks = False
+    else:
+        sticks = abs(ktn) <= mu * ktt if math.isfinite(mu) else True
+    y = np.array([u[0], u[1], 0.0, 0.0])  # u_t, u_n, P_t, W
+    p = 0.0
+    if not math.isfinite(mu) and y[0] != 0.0:
+        # the limit mu -> inf: the slip is stopped at once, at zero normal impulse
+        jump = -y[0] / ktt
+        y[:3] += [ktt * jump, ktn * jump, jump]
+        y[0] = 0.0
+        info["stick"] = True
+    if y[0] != 0.0:
+        mode = math.copysign(1.0, y[0])
+    elif sticks:
+        mode, info["stick"] = 0.0, True
+    else:
+        mode = math.copysign(1.0, ktn) if ktn != 0.0 else 1.0
+    compressed, work_c = False, None
+    scale = (abs(u[0]) + abs(un0)) / min(np.linalg.eigvalsh(K))  # an impulse of the impact's size
+    for _ in range(EXACT_MAX_PHASES):
+        if not compressed and y[1] >= 0.0:
+            compressed, work_c = True, float(y[3])
+        if compressed:
+            if law == "newton" and y[1] >= -beta_n * un0:
+                return finish(np.array([y[2], p]))
+            if law == "energetic" and y[3] - (1.0 - beta_n**2) * work_c >= 0.0:
+                return finish(np.array([y[2], p]))
+        f = -mu * mode if mode != 0.0 else -ktn / ktt
+        if mode != 0.0 and mu > 0.0:
+            info["capped"] = True  # friction at its cap (sliding) for part of the impact
+        rate = np.array([ktt * f + ktn, ktn * f + knn, f])
+
+        def rhs(_, z, rate=rate):
+            return [rate[0], rate[1], rate[2], z[1]]
+
+        events = []
+        if mode != 0.0:
+            def slip(_, z):
+                return z[0]
+            slip.terminal, slip.direction = True, -mode
+            events.append(("slip", slip))
+        if not compressed:
+            def compression(_, z):
+                return z[1]
+            compression.terminal, compression.direction = True, 1.0
+            events.append(("compression", compression))
+        else:
+            def end(_, z):
+                return z[1] + beta_n * un0 if law == "newton" else z[3] - (1.0 - beta_n**2) * work_c
+            end.terminal, end.direction = True, 1.0
+            events.append(("end", end))
+        span, hit = 4.0 * scale, None
+        for _ in range(60):
+            sol = solve_ivp(rhs, (p, p + span), y, method="DOP853", rtol=EXACT_RTOL, atol=1e-15 * scale,
+                            events=[e for _, e in events])
+            if not sol.success:
+                raise RuntimeError(f"exact impact integration failed: {sol.message}")
+            found = [(float(te[0]), name, ye[0]) for (name, _), te, ye in zip(events, sol.t_events, sol.y_events) if te.size]
+            if found:
+                hit = min(found, key=lambda h: h[0])
+                break
+            p, y = float(sol.t[-1]), sol.y[:, -1].copy()
+            span *= 2.0
+        if hit is None:  # the phase never ends: a jam
+            info.update(jam=True, capped=False, stick=False, reversal=False)
+            return finish(frictionless)
+        p, name, y = hit[0], hit[1], np.array(hit[2], dtype=float)
+        if name == "slip":
+            y[0] = 0.0
+            if sticks:
+                mode, info["stick"] = 0.0, True
+            else:
+                mode, info["reversal"] = math.copysign(1.0, ktn), True
+        elif name == "compression":
+            y[1] = 0.0
+            compressed, work_c = True, float(y[3])
+        else:
+            return finish(np.array([y[2], p]))
+    raise RuntimeError("exact impact: too many phases")
+
+
+def _exact_corner_impulse(K, u, beta_n, mu, restitution):
+    """:func:`_exact_impulse` with the energy rule: a Newton impact that would gain energy
+    takes the energetic terminal instead (``clipped``)."""
+    P, info = _exact_impulse(K, u, beta_n, mu, restitution)
+    if restitution == "newton" and info["dT"] > 0.0:
+        P, info = _exact_impulse(K, u, beta_n, mu, restitution, terminal="energetic")
+        info["clipped"] = True
+    return P, info
+
+
 def _kinetic(die, q):
     """Specific kinetic energy (J/kg) of the velocities q = (vx, vy, omega) of the COM."""
     return 0.5 * (q[0] * q[0] + q[1] * q[1] + die.inertia * q[2] * q[2])
@@ -359,7 +574,10 @@ def _two_corner_impulse(die, q, ra, rb, targets, beta_t, mu, frictionless=False)
     (P_t = -mu (P_a + P_b)): three linear equations in (P_a, P_b, P_t). A case is admissible
     when its normal impulses push, a contact without impulse leaves at least as fast as its
     target, a tangential impulse on target lies in the cone, and an edge impulse falls short of
-    its target. The admissible case leaving the least kinetic energy is returned.
+    its target (friction rule "aimed"). With the rule "sliding" an edge is taken only where
+    the case's target impulse lies outside the cone, and only the edge opposing the row's
+    incoming tangential velocity (both edges, as aimed, if that velocity is 0). The admissible
+    case leaving the least kinetic energy is returned.
 
     Parameters
     ----------
@@ -398,6 +616,11 @@ def _two_corner_impulse(die, q, ra, rb, targets, beta_t, mu, frictionless=False)
         mid = sum(pressing) / len(pressing)
         t_row = velocity_map(mid[0], mid[1], True)
         t_target = -beta_t * float(t_row @ q)
+        u_t_in = float(t_row @ q)
+        # the sliding rule: an edge only where the target lies outside the cone, on the side
+        # opposing the row's incoming tangential velocity (both sides, as aimed, when it is 0)
+        sliding = die.rule == "sliding" and u_t_in != 0.0
+        target_outside = True
         # impulse -> velocity change: dq = W (P_a n_a + P_b n_b + P_t t), W = diag(1, 1, 1/I)
         gen = np.column_stack([normal_rows[0], normal_rows[1], t_row]) * np.array([[1.0], [1.0], [inv_i]])
         for mode in modes:
@@ -415,9 +638,13 @@ def _two_corner_impulse(die, q, ra, rb, targets, beta_t, mu, frictionless=False)
             else:
                 sign = {"+edge": 1.0, "-edge": -1.0, "none": 0.0}[mode]
                 A[2] = [-sign * mu * on[0], -sign * mu * on[1], 1.0] if mode != "none" else [0.0, 0.0, 1.0]
+            if sliding and mode.endswith("edge") and (not target_outside or (mode == "+edge") != (u_t_in < 0.0)):
+                continue
             if np.linalg.cond(A) > CASE_CONDITION:
                 continue
             P = np.linalg.solve(A, b)
+            if mode == "target":
+                target_outside = not (math.isinf(mu) or abs(P[2]) <= mu * (P[0] + P[1]) + slack)
             dq = gen @ P
             after = q + dq
             ok = True
@@ -429,9 +656,9 @@ def _two_corner_impulse(die, q, ra, rb, targets, beta_t, mu, frictionless=False)
             u_t = float(t_row @ after)
             if mode == "target":
                 ok &= math.isinf(mu) or abs(P[2]) <= mu * (P[0] + P[1]) + slack
-            elif mode == "+edge":
+            elif mode == "+edge" and not sliding:
                 ok &= u_t <= t_target + slack
-            elif mode == "-edge":
+            elif mode == "-edge" and not sliding:
                 ok &= u_t >= t_target - slack
             if not ok:
                 continue
@@ -520,12 +747,17 @@ def impact(truth, com_state, corner, second=None, share=1.0):
         The COM state just after the impact (positions unchanged).
     info : dict
         ``law`` ("paper", "fallback" or "rigid"), ``u_n`` and ``u_n_after`` (the corner's normal
-        velocity, m/s), ``beta_n`` (effective normal restitution), ``capped``, ``clipped``,
+        velocity, m/s), ``beta_n`` (effective normal restitution), ``capped``, ``clipped``
+        (with the exact rule ``capped`` means it slid for part of the impact, ``clipped`` that
+        it took the energetic terminal, and ``stick``, ``reversal``, ``jam``,
+        ``energetic_terminal`` are given),
         ``dT`` (J/kg); with a second corner also ``contacts`` (2), ``share``, ``u_n_second`` and
         ``u_n_second_after``; ``contacts`` 1 when there was none or no two-contact case was
         admissible.
     """
     die = _Die(truth)
+    if second is not None and truth.friction_rule == "exact":
+        raise NotImplementedError("no two-contact impact with friction_rule 'exact' (simulate_path ends the track there)")
     s = np.array(com_state, dtype=float)
     single, info = _single_impact(truth, die, s, corner)
     info.update(contacts=1, share=0.0)
@@ -594,7 +826,8 @@ class Path:
     t_end : float
         Time at which the path ends (s).
     end : str
-        "duration", "slow_impact", "no_rebound", "second_corner" or "stalled".
+        "duration", "slow_impact", "no_rebound", "second_corner", "exact_two_contacts" or
+        "stalled".
     """
 
     def __init__(self, truth):
@@ -672,14 +905,16 @@ def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
             return path
         path.flights.append((t, tc, flight))
         before = flight.state(tc)
-        ang = before[2] + die.gamma
-        height = before[1] + die.rho * np.sin(ang)
-        speed = before[4] + die.rho * before[5] * np.cos(ang)
+        height = die.heights(before)
+        speed = die.normal_speeds(before)
         path.t_end = tc
         if -speed[k] < min_bounce_speed:
             path.end = "slow_impact"
             return path
         j, share = _joining_corner(truth, die, height, speed, k)
+        if j is not None and truth.friction_rule == "exact":
+            path.end = "exact_two_contacts"  # no two-contact exact Coulomb impact here: the track ends
+            return path
         after, info = impact(truth, before, k, j, share)
         info.update(t=tc, corner=k, second=j if info["contacts"] == 2 else None, before=before, after=after)
         path.impacts.append(info)
@@ -687,7 +922,7 @@ def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
         if info["u_n_after"] < REBOUND_MIN or (arrived and info["u_n_second_after"] < REBOUND_MIN):
             path.end = "no_rebound"  # sustained contact: a pivot, or the die lying flat
             return path
-        speed_after = after[4] + die.rho * after[5] * np.cos(ang)
+        speed_after = die.normal_speeds(after)
         if any(i not in (k, j) and height[i] <= tol2 and speed_after[i] < 0.0 for i in range(die.n)):
             path.end = "second_corner"
             return path
