@@ -624,7 +624,7 @@ KERNEL_CASES = {
     "rounded corners": (_t("rigid", corner_radius=0.003), "rigid"),
 }
 KERNEL_PENDING = pytest.mark.xfail(reason="kernel support on another branch", strict=False)
-KERNEL_PENDING_CASES = ("sliding friction", "exact newton", "exact energetic", "rounded corners")
+KERNEL_PENDING_CASES = ("rounded corners",)
 KERNEL_TOL = (1e-8, 1e-7)  # m, rad; measured: at most 2e-12 m and 4e-11 rad (300 drops per case)
 
 
