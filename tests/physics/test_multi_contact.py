@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize
 
+from dice_sweep.physics.params import FP_INERTIA
 from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
 from tests.physics.conftest import TABLE1_RADIUS, make_params, run_batch, run_one
 
@@ -147,7 +148,7 @@ def test_no_two_contact_impact_gains_energy_or_leaves_a_contact_approaching(side
     state, contacts, separation = built
     params = make_params(sides=sides, model=model, beta_n=beta_n, beta_t=beta_t, friction=friction, separation=separation, com_offset=com)
     fpar, _ = params
-    inertia = fpar[13]  # FP_INERTIA, I / M about the centre of mass
+    inertia = fpar[FP_INERTIA]  # I / M about the centre of mass
     corners = corner_vectors(sides, state[2], com)
     before = [normal_velocity(np.array(state), corners[k], NORMALS[surf]) for surf, k in contacts]
     if max(before) >= 0.0:
@@ -179,7 +180,7 @@ def test_frictionless_impact_equals_an_independent_quadratic_programme(sides, ki
         return
     state, contacts, separation = built
     params = make_params(sides=sides, model="rigid", beta_n=beta_n, beta_t=0.0, friction=0.0, separation=separation)
-    inertia = params[0][13]
+    inertia = params[0][FP_INERTIA]
     corners = corner_vectors(sides, state[2], (0.0, 0.0))
     jac = np.array([[*NORMALS[surf], -corners[k, 1] * NORMALS[surf][0] + corners[k, 0] * NORMALS[surf][1]] for surf, k in contacts])
     u = jac @ np.array(state[3:])
