@@ -217,6 +217,61 @@ def test_rolling_pivot_matches_the_lagrangian_and_keeps_its_energy(n, ratio, chi
     assert compared >= 4
 
 
+@pytest.mark.parametrize("chi0, omega0, slip0", [(math.pi / 2 + 0.2, -3.0, 0.2), (math.pi / 2 - 0.3, 4.0, -0.15)])
+def test_sliding_pivot_on_an_arc_matches_newton_euler(chi0, omega0, slip0):
+    """A rounded die sliding on an arc under Coulomb friction, against Newton-Euler equations of
+    the whole body in Cartesian coordinates (solve_ivp): the normal force from the arc centre
+    staying at height r, friction -sign(slip) mu N at the contact point r below it."""
+    n, mu = 4, 0.3
+    r = 0.2 * R * math.cos(math.pi / 4)
+    fpar, _ = make_params(sides=n, corner_radius=r, model="rigid", friction=mu)
+    inertia = fpar[FP_INERTIA]
+    rho = core_radius(n, r)
+    body = np.array([rho, 0.0])  # arc centre 0 from the COM (fair die), body frame
+    direction = math.copysign(1.0, slip0)
+
+    def parts(z):
+        x, y, phi, vx, vy, w = z
+        c, s = math.cos(phi), math.sin(phi)
+        centre = np.array([c * body[0] - s * body[1], s * body[0] + c * body[1]])  # from the COM
+        lever = centre - np.array([0.0, r])  # the contact point
+        return centre, lever
+
+    def rhs(_, z):
+        x, y, phi, vx, vy, w = z
+        centre, lever = parts(z)
+        # (Y + centre_y)'' = 0 with Y'' = N - g, omega' = (l_x N - l_y F) / I, F = -direction mu N
+        normal = (G + w * w * centre[1]) / (1.0 + centre[0] * (lever[0] + direction * mu * lever[1]) / inertia)
+        friction = -direction * mu * normal
+        return [vx, vy, w, friction, normal - G, (lever[0] * normal - lever[1] * friction) / inertia]
+
+    # the COM state at the start: arc centre at (0, r), COM at rho e(chi0) from it
+    vx0 = slip0 - omega0 * (rho * math.sin(chi0) + r)
+    z0 = [rho * math.cos(chi0), r + rho * math.sin(chi0), chi0 - math.pi, vx0, omega0 * rho * math.cos(chi0), omega0]
+    times = np.linspace(0.0, 0.02, 11)[1:]
+    sol = solve_ivp(rhs, (0.0, times[-1]), z0, method="DOP853", rtol=1e-12, atol=1e-15, t_eval=times)
+    out = np.zeros(5)
+    hit = np.zeros(2, np.int64)
+    energy = [0.5 * (vx0**2 + z0[4] ** 2 + inertia * omega0**2) + G * z0[1]]
+    compared = 0
+    for t, z in zip(times, sol.y.T):
+        centre, lever = parts(z)
+        slip = z[3] - z[5] * lever[1]
+        if slip * direction <= 0.0 or abs(z[2] + math.pi - math.pi / 2) >= math.pi / 4:
+            break  # the slip stopped, or the next arc landed: another phase
+        kind = pivot_ode(fpar, n, 0, 0.0, chi0, omega0, slip0, t, False, out, hit)
+        assert kind == PIVOT_TIMEOUT
+        chi = math.atan2(-centre[1], -centre[0])  # the COM seen from the arc centre
+        assert out[0] == pytest.approx(chi, abs=1e-9)
+        assert out[1] == pytest.approx(z[5], abs=1e-8 * math.sqrt(G / R))
+        assert out[3] == pytest.approx(z[0] + centre[0], abs=1e-11)  # the arc centre, from x = 0
+        assert out[4] == pytest.approx(slip, abs=1e-9)
+        energy.append(0.5 * (z[3] ** 2 + z[4] ** 2 + inertia * z[5] ** 2) + G * z[1])
+        compared += 1
+    assert compared >= 4
+    assert np.all(np.diff(energy) < 0.0)  # friction only dissipates
+
+
 def test_rolling_pivot_in_a_whole_roll_conserves_energy():
     """A rounded die tipped onto an arc with unlimited friction rolls (ODE pivot segments) and
     keeps its energy along each pivot; impacts only take energy away."""
