@@ -382,3 +382,26 @@ def test_no_arc_ever_inside_the_table_or_a_wall(rng):
             centres = arc_centres(n, r, x, y, phi)
             assert centres[:, 1].min() - r > -1e-9 * R
             assert np.abs(centres[:, 0]).max() + r < separation / 2 + 1e-9 * R
+
+
+def test_continued_rounded_roll_comes_to_rest_on_the_decided_side(rng):
+    """Followed past the decision (IP_CONTINUE, as a fit does), a rounded die comes to rest on
+    the side decided, its centre at the apothem (which rounding keeps), no longer moving."""
+    from dice_sweep.physics.kernel import sample_batch, side_below
+    from dice_sweep.physics.params import IP_CONTINUE
+
+    fpar, ipar = make_params(corner_radius=0.2 * R, t_max=3.0)
+    states = random_states(rng, 30, y_range=(0.03, 0.15))
+    stopped, _, _, _ = run_batch((fpar, ipar), states)
+    ipar = ipar.copy()
+    ipar[IP_CONTINUE] = 1
+    times = np.tile([2.9, 3.0], len(states))
+    starts = np.arange(0, times.size + 1, 2)
+    out = np.zeros((times.size, 6))
+    outcome = np.zeros(len(states), np.int8)
+    sample_batch(fpar, ipar, states, times, starts, out, outcome)
+    assert np.array_equal(outcome, stopped)
+    final = out[1::2]
+    assert np.allclose(final[:, 1], R * math.cos(math.pi / 4), atol=1e-6)
+    assert np.all(np.abs(final[:, 3:]) < 1e-3)
+    assert [side_below(phi, fpar, 4) for phi in final[:, 2]] == list(stopped)
