@@ -17,6 +17,12 @@ a Newton step taken from the safe side, which converges quadratically; a corner 
 inside a surface by more than round-off. With drag the steps are also the integration steps,
 so the contact is located to the same precision as without it.
 
+Rounded corners (fpar[FP_CORNER_RADIUS] = r > 0): the corner block holds the arc centres, and a
+corner's gap is its arc centre's distance from the surface less r, so the search runs on the
+centres against each surface moved r towards the die (the same bound holds: the gap and the
+centre's distance differ by a constant). FP_RHO_MAX is the die's reach, max rho_k + r, so the
+"no corner within reach" shortcut is unchanged. At r = 0 the subtraction of +0.0 is exact.
+
 Surfaces: 0 = table (y = 0, normal +y), 1 = left wall (x = -L, normal +x), 2 = right wall
 (x = +L, normal -x), with L half the wall separation (inf: no walls).
 """
@@ -28,6 +34,7 @@ import numpy as np
 
 from dice_sweep.physics.params import (
     CORNER_STRIDE,
+    FP_CORNER_RADIUS,
     FP_CORNERS,
     FP_DRAG,
     FP_DRAG_MAX_STEP,
@@ -206,6 +213,7 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
     """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now."""
     half_width = fpar[FP_WALL]
     rho_max = fpar[FP_RHO_MAX]
+    arc = fpar[FP_CORNER_RADIUS]
     omega = s[5]
     cphi = math.cos(s[2])
     sphi = math.sin(s[2])
@@ -222,6 +230,7 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
             # margin keeps this shortcut from taking round-off-sized steps near h = rho_max.)
             step = min(step, safe_step(h - rho_max, hv, accel))
             continue
+        h -= arc  # rounded corners: the arc centres against the surface moved by r (exact at 0)
         for k in range(n):
             base = FP_CORNERS + CORNER_STRIDE * k
             rho = fpar[base]
@@ -273,6 +282,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     g = fpar[FP_G]
     half_width = fpar[FP_WALL]
     rho_max = fpar[FP_RHO_MAX]
+    arc = fpar[FP_CORNER_RADIUS]
     x, y, phi, vy = x0, y0, phi0, vy0
     tau = 0.0
     result = STALLED
@@ -293,6 +303,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
             if h - rho_max > REACH_MARGIN * rho_max:
                 step = min(step, safe_step(h - rho_max, hv, accel))
                 continue
+            h -= arc  # rounded corners: arc centres against the surface moved by r
             if not trig:
                 cphi = math.cos(phi)
                 sphi = math.sin(phi)

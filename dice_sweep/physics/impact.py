@@ -25,6 +25,13 @@ Every impulse on that segment meets the normal condition and lies inside the fri
 ``[contact] friction_rule`` (ipar[IP_FRICTION_RULE]) picks the rule: "aimed" (the above),
 "sliding" (the textbook branch P_t = -sign(u_t) mu P_n, same jam rule and clip) or "exact"
 (the integrated Coulomb impact, physics/exact_impact.py, with ``[contact] restitution``).
+
+Rounded corners (fpar[FP_CORNER_RADIUS] = r > 0): the impulse acts at the contact point, the arc
+centre less r times the surface normal (:func:`contact_lever`), not at the arc centre. Its normal
+velocity equals the arc centre's (omega x (-r n) is tangential), so the tests on the corner's
+normal velocity (the paper law's "left approaching" among them) read the same either way; its
+tangential velocity and the contact mass matrix change. The paper's law itself (lever R below
+the centre) is left as it is.
 """
 
 import math
@@ -36,6 +43,7 @@ from dice_sweep.physics.params import (
     FP_ALPHA,
     FP_BN,
     FP_BT,
+    FP_CORNER_RADIUS,
     FP_G,
     FP_INERTIA,
     FP_KSR,
@@ -67,6 +75,17 @@ def specific_energy(s, fpar):
 def corner_vector(s, fpar, corner):
     """Vector (m) from the centre of mass to ``corner`` in state s."""
     return corner_offset(fpar, corner, math.cos(s[2]), math.sin(s[2]))
+
+
+@numba.njit(cache=True)
+def contact_lever(fpar, rx, ry, nx, ny):
+    """Vector (m) from the centre of mass to the contact point of the corner whose arc centre is
+    at (rx, ry), on a surface of normal (nx, ny): the arc centre less r n (the corner itself
+    when r = 0, returned untouched so that a sharp die's arithmetic is unchanged)."""
+    arc = fpar[FP_CORNER_RADIUS]
+    if arc == 0.0:
+        return rx, ry
+    return rx - arc * nx, ry - arc * ny
 
 
 @numba.njit(cache=True)
@@ -187,6 +206,7 @@ def resolve_impact(s, fpar, ipar, surf, corner, counts):
     """
     nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
     rx, ry = corner_vector(s, fpar, corner)
+    rx, ry = contact_lever(fpar, rx, ry, nx, ny)  # rounded corners: the contact point
     u_n = corner_normal_velocity(s, rx, ry, nx, ny)
     if u_n >= 0.0:
         return u_n  # touching but not approaching (e.g. a side landing flat at rest): no impact
@@ -217,7 +237,8 @@ def resolve_impact(s, fpar, ipar, surf, corner, counts):
 
 @numba.njit(cache=True)
 def stick_corner(s, inertia, rx, ry):
-    """Bring the corner (rx, ry) on the table to rest (plastic, sticking impulse).
+    """Bring the corner (rx, ry) on the table to rest (plastic, sticking impulse); with rounded
+    corners (rx, ry) is the contact point (:func:`contact_lever`).
 
     This is the limit of an endless run of ever smaller bounces; it only removes energy:
     dT = -u^T K^-1 u / 2.

@@ -6,6 +6,10 @@ two corners of the side below it (R for a fair die), no corner can pass under th
 mass again, so the side crossed by the vertical ray down from it is the answer), or with
 outcome -1 and a status saying why not.
 
+With rounded corners (fpar[FP_CORNER_RADIUS] = r > 0) the corner geometry is that of the arc
+centres, gaps are their distances less r, impulses act at the contact point r below the arc
+centre, and a pivot rolls on the arc (pivot.pivot_ode; docs/physics.md, "Rounded corners").
+
 Initial states and sampled paths are those of the geometric centre (where a tracker sees a
 die's centre mark); inside, the kernels follow the centre of mass.
 """
@@ -26,6 +30,7 @@ from dice_sweep.physics.flight import (
     surface_frame,
 )
 from dice_sweep.physics.impact import (
+    contact_lever,
     corner_normal_velocity,
     corner_vector,
     resolve_impact,
@@ -36,6 +41,7 @@ from dice_sweep.physics.impact import (
 from dice_sweep.physics.params import (
     FP_COM_X,
     FP_COM_Y,
+    FP_CORNER_RADIUS,
     FP_DRAG,
     FP_DT,
     FP_G,
@@ -159,8 +165,11 @@ def _record(rec, nrec, t, kind, s, corner, px, chi, energy, event):
 
 @numba.njit(cache=True)
 def _set_pivot_state(s, fpar, px, chi, omega, corner):
-    """Full COM state of a die pivoting on ``corner`` at (px, 0), keeping phi unwrapped."""
+    """Full COM state of a die pivoting on ``corner`` at (px, 0), keeping phi unwrapped; with
+    rounded corners px is the arc centre's x (the centre at height r) and the die rolls
+    (the contact point at rest)."""
     rho, angle = corner_geometry(fpar, corner)
+    arc = fpar[FP_CORNER_RADIUS]
     s[0] = px + rho * math.cos(chi)
     s[1] = rho * math.sin(chi)
     phi = chi - angle - math.pi  # chi is the body angle of (COM - corner) turned by phi
@@ -168,6 +177,9 @@ def _set_pivot_state(s, fpar, px, chi, omega, corner):
     s[3] = -omega * rho * math.sin(chi)
     s[4] = omega * rho * math.cos(chi)
     s[5] = omega
+    if arc != 0.0:
+        s[1] += arc
+        s[3] -= omega * arc
 
 
 @numba.njit(inline="always")  # inlined: a call (four array arguments) per impact costs refcounts
@@ -218,7 +230,8 @@ def _corner_resting(s, fpar, corner, c, sn, speed):
     """True if ``corner`` (body angle with cosine c, sine sn) is on the table and moves in or
     out no faster than ``speed``."""
     rx, ry = corner_offset(fpar, corner, c, sn)
-    return not (s[1] + ry > RESTING_GAP * fpar[FP_RHO_MAX] or abs(s[4] + s[5] * rx) > speed)
+    # rounded corners: the arc's gap is its centre's height less r (exact at r = 0)
+    return not (s[1] + ry - fpar[FP_CORNER_RADIUS] > RESTING_GAP * fpar[FP_RHO_MAX] or abs(s[4] + s[5] * rx) > speed)
 
 
 @numba.njit(cache=True)
@@ -256,7 +269,8 @@ def _slide_time(speed, fpar, side, n, to_rest):
         return speed / decel
     rho_a, _ = corner_geometry(fpar, side)
     rho_b, _ = corner_geometry(fpar, (side + 1) % n)
-    spare = fpar[FP_G] * (min(rho_a, rho_b) * (1.0 - DECISION_MARGIN) - rest_height(fpar, n, side))
+    barrier = min(rho_a, rho_b) + fpar[FP_CORNER_RADIUS]  # rounded corners: over the arc
+    spare = fpar[FP_G] * (barrier * (1.0 - DECISION_MARGIN) - rest_height(fpar, n, side))
     decided_speed = math.sqrt(max(2.0 * spare, 0.0)) * (1.0 - DECIDED_SPEED_MARGIN)
     return max(speed - decided_speed, 0.0) / decel
 
@@ -274,7 +288,7 @@ def _time_to_wall(s, fpar, n):
     for corner in range(n):
         rx, _ = corner_offset(fpar, corner, c, sn)
         reach = max(reach, rx if s[3] > 0.0 else -rx)
-    gap = half_width - reach - (s[0] if s[3] > 0.0 else -s[0])
+    gap = half_width - reach - fpar[FP_CORNER_RADIUS] - (s[0] if s[3] > 0.0 else -s[0])
     speed = abs(s[3])
     if decel == 0.0:
         return max(gap, 0.0) / speed
@@ -375,7 +389,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     min_step = MIN_STEP * math.sqrt(scale / g)
     contact_speed = CONTACT_SPEED * math.sqrt(g * scale)
     stick_speed = math.sqrt(2.0 * g * scale * STICK_HEIGHT)
-    smooth_pivot = math.isinf(fpar[FP_MU]) and fpar[FP_DRAG] == 0.0
+    # the closed-form pivot: sticking, without drag, on a sharp corner (a rounded one rolls: ODE)
+    smooth_pivot = math.isinf(fpar[FP_MU]) and fpar[FP_DRAG] == 0.0 and fpar[FP_CORNER_RADIUS] == 0.0
     drag_free = fpar[FP_DRAG] == 0.0
     decide_bound = decision_bound(fpar)
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
@@ -464,12 +479,13 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             # The bounces that would follow shrink geometrically (a Zeno run): take their
             # limit, the corner at rest on the table, and turn about it.
             rx, ry = corner_vector(s, fpar, corner)
+            lx, ly = contact_lever(fpar, rx, ry, 0.0, 1.0)  # rounded corners: the contact point
             if math.isinf(fpar[FP_MU]):
-                stick_corner(s, fpar[FP_INERTIA], rx, ry)
+                stick_corner(s, fpar[FP_INERTIA], lx, ly)
                 slip = 0.0
             else:
-                slip = stop_corner_normal(s, fpar[FP_INERTIA], rx, ry)
-            px = s[0] + rx
+                slip = stop_corner_normal(s, fpar[FP_INERTIA], lx, ly)
+            px = s[0] + rx  # the corner's (arc centre's) x
             chi = math.atan2(-ry, -rx)
             counts[C_PIVOTS] += 1
         energy = specific_energy(s, fpar)
@@ -506,6 +522,7 @@ def _roll_fixed_step(fpar, ipar, s, rec, counts, start):
     side = decided_side(s, fpar, n)
     if side >= 0:
         return side, STATUS_DECIDED, t, t, nrec
+    arc = fpar[FP_CORNER_RADIUS]
     n_steps = int(math.ceil(fpar[FP_TMAX] / dt))
     impacts = 0
     for step in range(1, n_steps + 1):
@@ -520,7 +537,7 @@ def _roll_fixed_step(fpar, ipar, s, rec, counts, start):
             nx, ny, d = surface_frame(sf, half_width)
             for k in range(n):
                 rx, ry = corner_vector(s, fpar, k)
-                gap = d + nx * (s[0] + rx) + ny * (s[1] + ry)
+                gap = d + nx * (s[0] + rx) + ny * (s[1] + ry) - arc  # rounded: arc centre less r
                 if gap < deepest:
                     u_n = nx * (s[3] - s[5] * ry) + ny * (s[4] + s[5] * rx)
                     if u_n < 0.0:
@@ -624,8 +641,9 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
         if rec[seg, REC_KIND] == SEG_PIVOT_ODE:
             # sliding or drag-damped pivot: integrate again up to the sample time
             corner = int(rec[seg, REC_CORNER])
-            _, ry = corner_vector(start, fpar, corner)
-            slip = 0.0 if math.isinf(fpar[FP_MU]) else start[3] - start[5] * ry
+            rx, ry = corner_vector(start, fpar, corner)
+            _, ly = contact_lever(fpar, rx, ry, 0.0, 1.0)  # the contact point's slip
+            slip = 0.0 if math.isinf(fpar[FP_MU]) else start[3] - start[5] * ly
             pivot_ode(fpar, ipar[IP_N], corner, rec[seg, REC_PX], rec[seg, REC_CHI], start[5], slip, tau, False, pivot_out, pivot_hit)
             com[:] = start
             _set_pivot_state(com, fpar, rec[seg, REC_PX] + pivot_out[3], pivot_out[0], pivot_out[1], corner)

@@ -39,6 +39,9 @@ restitution`` says: the exact law's incoming slide and its sticking end. That mi
 reversal within an impact that both contacts carry, and the energetic law's phase coupling
 (docs/physics.md, "Friction rules").
 
+Rounded corners: each contact's lever is its contact point (impact.contact_lever), the arc
+centre less r times the surface normal.
+
 Paper law. Eqs 9-13 depend only on the surface, not on the corner, so two corners on one
 surface get one application of the law. It stands when the centre approaches the surface
 and neither corner is left approaching; otherwise, and for contacts on two surfaces, the rigid
@@ -51,11 +54,14 @@ import numba
 import numpy as np
 
 from dice_sweep.physics.flight import corner_offset, surface_frame
-from dice_sweep.physics.impact import C_CLIPS, C_FALLBACK, beta_normal_at, corner_normal_velocity, paper_law, resolve_impact
+from dice_sweep.physics.impact import (
+    C_CLIPS, C_FALLBACK, beta_normal_at, contact_lever, corner_normal_velocity, paper_law, resolve_impact,
+)
 from dice_sweep.physics.exact_impact import exact_corner_impulse
 from dice_sweep.physics.params import (
     FP_ALPHA,
     FP_BT,
+    FP_CORNER_RADIUS,
     FP_INERTIA,
     FP_MU,
     FP_R,
@@ -81,7 +87,9 @@ def second_contact(s, fpar, n, n_surf, surf0, corner0, window, tol, contact_spee
 
     A corner joins when it approaches its surface faster than ``contact_speed`` (m/s) and its
     gap would close, at its present normal speed, within ``window`` (or is within ``tol``,
-    m). Returns (surface, corner, arrival time in s), (-1, -1, inf) when none does.
+    m). Returns (surface, corner, arrival time in s), (-1, -1, inf) when none does. With
+    rounded corners the gap is the arc centre's distance less r, and the normal speed is the
+    arc centre's (the contact point's is the same).
     """
     c = math.cos(s[2])
     sn = math.sin(s[2])
@@ -90,11 +98,13 @@ def second_contact(s, fpar, n, n_surf, surf0, corner0, window, tol, contact_spee
     best_surf = np.int64(-1)  # not literals: see corner in kernel._roll_event
     best_corner = np.int64(-1)
     reach = tol + speed * window  # no corner farther than this can arrive within the window
+    arc = fpar[FP_CORNER_RADIUS]
     for surf in range(n_surf):
         nx, ny, d = surface_frame(surf, fpar[FP_WALL])
         h = d + nx * s[0] + ny * s[1]
         if h - fpar[FP_RHO_MAX] > reach:
             continue
+        h -= arc  # rounded corners: an arc's gap is its centre's distance less r (exact at 0)
         for k in range(n):
             if surf == surf0 and k == corner0:
                 continue
@@ -379,6 +389,7 @@ def _fill_contact(contacts, i, s, fpar, surf, corner, c, sn):
     """Row i of ``contacts`` for ``corner`` on ``surf``; returns its normal velocity (m/s)."""
     nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
     rx, ry = corner_offset(fpar, corner, c, sn)
+    rx, ry = contact_lever(fpar, rx, ry, nx, ny)  # rounded corners: the contact point
     u_n = corner_normal_velocity(s, rx, ry, nx, ny)
     beta_n = beta_normal_at(fpar, abs(u_n))
     contacts[i, 0] = nx

@@ -1,11 +1,18 @@
-"""The outcome rule: which side is below the centre of mass, and whether it is decided."""
+"""The outcome rule: which side is below the centre of mass, and whether it is decided.
+
+Rounded corners (fpar[FP_CORNER_RADIUS] = r > 0): the corner block holds the arc centres c_k.
+Rolling over corner k lifts the centre of mass to |c_k - COM| + r at most (when it is straight
+above c_k), so that is the barrier; the rays through the arc centres separate the sides (a die
+on arc k tips towards the side its COM is over), so side_below reads the same block; a side
+lying flat rests on both its arcs, with the COM at r above the line through their centres.
+"""
 
 import math
 
 import numba
 
 from dice_sweep.physics.impact import specific_energy
-from dice_sweep.physics.params import CORNER_STRIDE, FP_COM_X, FP_COM_Y, FP_CORNERS, FP_G, FP_RHO_MAX
+from dice_sweep.physics.params import CORNER_STRIDE, FP_COM_X, FP_COM_Y, FP_CORNER_RADIUS, FP_CORNERS, FP_G, FP_RHO_MAX
 
 # E < g rho decides the side; a die balanced on a corner sits at E = g rho up to round-off,
 # which must not decide it (test_balanced_on_a_corner_is_reported_not_guessed caught that).
@@ -38,7 +45,8 @@ def side_below(phi, fpar, n):
 def decision_bound(fpar):
     """Specific energy (J/kg) at or above which no side can be decided: g rho_max with the
     decision margin. Exact as a first test: min(rho_a, rho_b) <= rho_max and rounding is
-    monotone, so it is never below the barrier of :func:`decided_side`."""
+    monotone, so it is never below the barrier of :func:`decided_side`. (With rounded corners
+    rho_max is max rho_k + r, the largest barrier height.)"""
     return fpar[FP_G] * fpar[FP_RHO_MAX] * (1.0 - DECISION_MARGIN)
 
 
@@ -49,7 +57,8 @@ def decided_side(s, fpar, n):
     To change the side below the centre of mass a corner of that side must pass under it,
     lifting it to that corner's distance rho from it: impossible once the energy per unit mass
     is below g min(rho_a, rho_b) (with a relative margin, so that a die balanced on a corner,
-    at exactly that energy, is not decided by round-off).
+    at exactly that energy, is not decided by round-off). With rounded corners rho is the arc
+    centre's distance plus r (exact: + 0.0 when r = 0).
     """
     energy = specific_energy(s, fpar)
     # Most calls come at energies above g rho_max, where no side can be decided: answer those
@@ -59,17 +68,18 @@ def decided_side(s, fpar, n):
     k = side_below(s[2], fpar, n)
     rho_a = fpar[FP_CORNERS + CORNER_STRIDE * k]
     rho_b = fpar[FP_CORNERS + CORNER_STRIDE * ((k + 1) % n)]
-    barrier = fpar[FP_G] * min(rho_a, rho_b) * (1.0 - DECISION_MARGIN)
+    barrier = fpar[FP_G] * (min(rho_a, rho_b) + fpar[FP_CORNER_RADIUS]) * (1.0 - DECISION_MARGIN)
     return k if energy < barrier else -1
 
 
 @numba.njit(cache=True)
 def rest_height(fpar, n, side):
-    """Height (m) of the centre of mass above the table when the die lies on ``side``."""
+    """Height (m) of the centre of mass above the table when the die lies on ``side`` (with
+    rounded corners its distance from the line through the two arc centres, plus r)."""
     rho_a, ang_a = corner_geometry(fpar, side)
     rho_b, ang_b = corner_geometry(fpar, (side + 1) % n)
     ax = rho_a * math.cos(ang_a)
     ay = rho_a * math.sin(ang_a)
     bx = rho_b * math.cos(ang_b)
     by = rho_b * math.sin(ang_b)
-    return abs(ax * by - ay * bx) / math.hypot(bx - ax, by - ay)
+    return abs(ax * by - ay * bx) / math.hypot(bx - ax, by - ay) + fpar[FP_CORNER_RADIUS]

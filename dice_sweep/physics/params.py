@@ -8,6 +8,12 @@ The state inside the kernels is that of the centre of mass (COM). With a loaded 
 (``[effects] com_offset``) the COM sits at ``d`` (body frame) from the geometric centre, and
 corner k seen from the COM is ``R e(2 pi k/n) - d``, stored as a radius rho_k and the cosine and
 sine of its body angle gamma_k from index FP_CORNERS on.
+
+Rounded corners (``[effects] corner_radius`` r > 0, fpar[FP_CORNER_RADIUS]): the die is a core
+regular polygon of apothem a - r (a = R cos(pi/n), the sharp die's) grown by a disk of radius r,
+and the corner block holds the core's corners, the arc centres: ``Rc e(2 pi k/n) - d`` with
+Rc = (a - r) / cos(pi/n). A surface is touched where an arc centre is r from it. FP_RHO_MAX is
+then the die's reach from the COM, max rho_k + r (docs/physics.md, "Rounded corners").
 """
 
 import math
@@ -30,7 +36,7 @@ FP_TMAX = 6  # simulated time limit, s
 FP_ALPHA = 7  # I_com / (M R^2), 1
 FP_MU = 8  # Coulomb friction coefficient (inf: no cap)
 FP_INERTIA = 9  # I_com / M, m^2 (the inertia effect's factor times eq. 25, less M d^2 of a loaded die)
-FP_RHO_MAX = 10  # largest distance from the COM to a corner, m
+FP_RHO_MAX = 10  # largest distance from the COM to a point of the die (a corner, or an arc's far side), m
 FP_WINDOW = 11  # contact window: contacts arriving within it are one impact, s
 FP_DRAG_TOL = 12  # x rho_max: position error allowed per Runge-Kutta step of a flight with drag
 FP_DRAG_MAX_STEP = 13  # s: longest Runge-Kutta step of a flight with drag
@@ -120,19 +126,30 @@ def pack_params(cfg):
     fpar[FP_DRAG_TOL] = DRAG_TOL
     fpar[FP_DRAG_MAX_STEP] = DRAG_MAX_STEP
     angles = 2.0 * math.pi * np.arange(n) / n
-    bx = radius * np.cos(angles) - dx
-    by = radius * np.sin(angles) - dy
+    corner_radius = fpar[FP_CORNER_RADIUS]  # noqa: F821  (the rounded_corners key's slot)
+    # rounded corners: the arc centres, corners of the core polygon of apothem a - r
+    core = radius if corner_radius == 0.0 else core_circumradius(n, radius, corner_radius)
+    bx = core * np.cos(angles) - dx
+    by = core * np.sin(angles) - dy
     rho = np.hypot(bx, by)
     corners = fpar[FP_CORNERS:].reshape(n, CORNER_STRIDE)
     corners[:, 0] = rho
     corners[:, 1] = bx / rho
     corners[:, 2] = by / rho
-    fpar[FP_RHO_MAX] = rho.max()
+    fpar[FP_RHO_MAX] = rho.max() + corner_radius
     ipar[IP_N] = n
     ipar[IP_MODEL] = MODELS[cfg.contact.model]
     ipar[IP_METHOD] = METHODS[cfg.integrator.method]
     ipar[IP_MAX_EVENTS] = event_budget(cfg.integrator)
     return fpar, ipar
+
+
+def core_circumradius(n, radius, corner_radius):
+    """Circumradius (m) of the core polygon of a die with corners rounded to ``corner_radius``
+    that keeps the apothem R cos(pi/n): (a - r) / cos(pi/n), the arc centres' distance from the
+    geometric centre."""
+    c = math.cos(math.pi / n)
+    return (radius * c - corner_radius) / c
 
 
 def event_budget(integrator):

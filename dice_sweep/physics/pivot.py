@@ -35,6 +35,7 @@ from dice_sweep.physics.outcome import corner_geometry, decided_side
 from dice_sweep.physics.params import (
     FP_COM_X,
     FP_COM_Y,
+    FP_CORNER_RADIUS,
     FP_DRAG,
     FP_G,
     FP_INERTIA,
@@ -351,21 +352,73 @@ MODE_STICK = 0
 
 
 @numba.njit(cache=True)
-def _com_velocity(chi, omega, up, rho):
-    return up - omega * rho * math.sin(chi), omega * rho * math.cos(chi)
+def _com_velocity(chi, omega, up, rho, arc):
+    """COM velocity of a die on a corner (its arc, radius ``arc``) with slip velocity up."""
+    if arc == 0.0:
+        return up - omega * rho * math.sin(chi), omega * rho * math.cos(chi)
+    return up - omega * (rho * math.sin(chi) + arc), omega * rho * math.cos(chi)
 
 
 @numba.njit(cache=True)
-def _contact_rates(y, mode, rho, inertia, g, mu, c, rates):
-    """Time derivatives of y = (chi, omega, xp, up); returns (N, F_needed) per unit mass.
+def _rolling_rates(y, mode, rho, arc, inertia, g, mu, c, rates):
+    """:func:`_contact_rates` of a die on a rounded corner (arc radius ``arc`` > 0).
 
-    For a sticking corner N and F are the forces sticking needs; for a sliding one N is the
-    normal force and F the friction applied.
+    The arc centre C stays at height r; the COM is at C + rho (cos chi, sin chi) and the
+    contact point P = C - r y is at l = (-rho cos chi, -(rho sin chi + r)) from the COM. With N
+    and F the normal and friction forces at P (per unit mass) and D the drag acceleration:
+    X'' = F + D_x, Y'' = N - g + D_y, I omega' = -rho cos chi N + (rho sin chi + r) F, and
+    Y = r + rho sin chi. Sticking (rolling without slip: P at rest, X' = -omega (rho sin chi +
+    r)) gives, with J = I + rho^2 + r^2 + 2 r rho sin chi (I plus the squared distance from the
+    COM to P),
+      J omega' = rho cos chi (D_y - g) - (rho sin chi + r) D_x - r rho cos chi omega^2,
+    the Lagrangian equation of the rolling die without drag. Sliding with slip direction s
+    (F = -s mu N):
+      N = (g - D_y - rho omega^2 sin chi) / (1 + rho cos chi L / I),
+      omega' = -N L / I,  L = rho cos chi + s mu (rho sin chi + r).
+    The arc centre moves at xp' = up - r omega (rolling: -r omega); up is P's slip velocity.
     """
     chi, omega, up = y[0], y[1], y[3]
     sc = math.sin(chi)
     cc = math.cos(chi)
-    vx, vy = _com_velocity(chi, omega, up, rho)
+    vx, vy = _com_velocity(chi, omega, up, rho, arc)
+    speed = math.sqrt(vx * vx + vy * vy)
+    drag_x = -c * speed * vx
+    drag_y = -c * speed * vy
+    w2 = omega * omega
+    arm = rho * sc + arc  # height of the COM above the contact point
+    rates[0] = omega
+    rates[2] = up - arc * omega
+    if mode == MODE_STICK:
+        domega = (rho * cc * (drag_y - g) - arm * drag_x - arc * rho * cc * w2) / (inertia + rho * rho + arc * arc + 2.0 * arc * rho * sc)
+        rates[1] = domega
+        rates[3] = 0.0
+        ddx = -arm * domega - rho * cc * w2
+        ddy = rho * (cc * domega - sc * w2)
+        return ddy + g - drag_y, ddx - drag_x
+    lever = rho * cc + mode * mu * arm
+    normal = (g - drag_y - rho * w2 * sc) / (1.0 + rho * cc * lever / inertia)
+    domega = -normal * lever / inertia
+    friction = -mode * mu * normal
+    rates[1] = domega
+    rates[3] = friction + drag_x + arm * domega + rho * cc * w2
+    return normal, friction
+
+
+@numba.njit(cache=True)
+def _contact_rates(y, mode, rho, arc, inertia, g, mu, c, rates):
+    """Time derivatives of y = (chi, omega, xp, up); returns (N, F_needed) per unit mass.
+
+    For a sticking corner N and F are the forces sticking needs; for a sliding one N is the
+    normal force and F the friction applied. ``arc`` > 0: the corner is an arc of that radius,
+    chi is the angle of the COM seen from the arc centre and xp the arc centre's displacement
+    (:func:`_rolling_rates`).
+    """
+    if arc != 0.0:
+        return _rolling_rates(y, mode, rho, arc, inertia, g, mu, c, rates)
+    chi, omega, up = y[0], y[1], y[3]
+    sc = math.sin(chi)
+    cc = math.cos(chi)
+    vx, vy = _com_velocity(chi, omega, up, rho, 0.0)
     speed = math.sqrt(vx * vx + vy * vy)
     drag_x = -c * speed * vx
     drag_y = -c * speed * vy
@@ -408,7 +461,7 @@ DP_P6 = (40617522.0 / 29380423.0, -110615467.0 / 29380423.0, 69997945.0 / 293804
 
 
 @numba.njit(cache=True)
-def _dp5_contact(y, h, mode, rho, inertia, g, mu, c, scale, k, tmp, out):
+def _dp5_contact(y, h, mode, rho, arc, inertia, g, mu, c, scale, k, tmp, out):
     """One Dormand-Prince step of length h from y; k[0] must hold the rates at y.
 
     Writes the fifth-order solution to ``out`` and its rates to k[6] (the next step's k[0]);
@@ -417,24 +470,24 @@ def _dp5_contact(y, h, mode, rho, inertia, g, mu, c, scale, k, tmp, out):
     """
     for i in range(4):
         tmp[i] = y[i] + h * DP_A21 * k[0, i]
-    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[1])
+    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[1])
     for i in range(4):
         tmp[i] = y[i] + h * (DP_A31 * k[0, i] + DP_A32 * k[1, i])
-    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[2])
+    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[2])
     for i in range(4):
         tmp[i] = y[i] + h * (DP_A41 * k[0, i] + DP_A42 * k[1, i] + DP_A43 * k[2, i])
-    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[3])
+    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[3])
     for i in range(4):
         tmp[i] = y[i] + h * (DP_A51 * k[0, i] + DP_A52 * k[1, i] + DP_A53 * k[2, i] + DP_A54 * k[3, i])
-    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[4])
+    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[4])
     for i in range(4):
         tmp[i] = y[i] + h * (DP_A61 * k[0, i] + DP_A62 * k[1, i] + DP_A63 * k[2, i] + DP_A64 * k[3, i]
                              + DP_A65 * k[4, i])
-    _contact_rates(tmp, mode, rho, inertia, g, mu, c, k[5])
+    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[5])
     for i in range(4):
         out[i] = y[i] + h * (DP_B1 * k[0, i] + DP_B3 * k[2, i] + DP_B4 * k[3, i] + DP_B5 * k[4, i]
                              + DP_B6 * k[5, i])
-    _contact_rates(out, mode, rho, inertia, g, mu, c, k[6])
+    _contact_rates(out, mode, rho, arc, inertia, g, mu, c, k[6])
     err = 0.0
     for i in range(4):
         e = h * (DP_E1 * k[0, i] + DP_E3 * k[2, i] + DP_E4 * k[3, i] + DP_E5 * k[4, i] + DP_E6 * k[5, i]
@@ -475,7 +528,7 @@ def _sticking_event(chi, omega, rho, g, mu, normal, friction, drag_accel):
 
 
 @numba.njit(cache=True)
-def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit):
+def _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit):
     """The event that holds in contact state y (0: none), with ``hit`` for impacts.
 
     Order matters only for simultaneous events: impacts, then lift-off, then friction
@@ -486,9 +539,9 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
         hit[0] = SURF_TABLE
         hit[1] = (corner + 1) % n if chi <= chi_right else (corner - 1) % n
         return 1
-    normal, friction = _contact_rates(y, mode, rho, inertia, g, mu, c, rates)
-    vx, vy = _com_velocity(chi, omega, y[3], rho)
-    height = rho * math.sin(chi)
+    normal, friction = _contact_rates(y, mode, rho, arc, inertia, g, mu, c, rates)
+    vx, vy = _com_velocity(chi, omega, y[3], rho, arc)
+    height = rho * math.sin(chi) if arc == 0.0 else rho * math.sin(chi) + arc
     energy = 0.5 * (vx * vx + vy * vy) + 0.5 * inertia * omega * omega + g * height
     half_width = fpar[FP_WALL]
     walls = not math.isinf(half_width)
@@ -509,8 +562,8 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
         sphi = math.sin(state[2])
         for j in range(n):
             rx, _ = corner_offset(fpar, j, cphi, sphi)
-            if state[0] + rx >= half_width or state[0] + rx <= -half_width:
-                hit[0] = SURF_RIGHT if state[0] + rx >= half_width else SURF_LEFT
+            if state[0] + rx + arc >= half_width or state[0] + rx - arc <= -half_width:
+                hit[0] = SURF_RIGHT if state[0] + rx + arc >= half_width else SURF_LEFT
                 hit[1] = j
                 return 2
     if mode == MODE_STICK:
@@ -532,7 +585,7 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_rig
 def _stick_event(y, rho, inertia, g, mu, rates):
     """Lift-off (3) or slip (4) of a sticking corner without drag in state y, else 0: the
     test :func:`_contact_event` makes (the same function)."""
-    normal, friction = _contact_rates(y, MODE_STICK, rho, inertia, g, mu, 0.0, rates)
+    normal, friction = _contact_rates(y, MODE_STICK, rho, 0.0, inertia, g, mu, 0.0, rates)
     return _sticking_event(y[0], y[1], rho, g, mu, normal, friction, 0.0)
 
 
@@ -567,10 +620,11 @@ def _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_
     STICK_TURN_MARGIN over the top of the corner (turning points, and pivot_time's domain),
     a wall within reach, a loaded die that may be
     decided on the way (its barrier changes with the side below), or more time than
-    ``t_room``. The event itself is left to :func:`_contact_event` in the caller.
+    ``t_room``, or rounded corners (a rolling pivot: its time is no longer this elliptic
+    integral). The event itself is left to :func:`_contact_event` in the caller.
     """
     omega = y[1]
-    if omega == 0.0:
+    if omega == 0.0 or fpar[FP_CORNER_RADIUS] != 0.0:  # a rolling pivot: the ODE (docs/physics.md)
         return -1.0
     half_width = fpar[FP_WALL]
     if not math.isinf(half_width) and abs(px + y[2]) + 2.0 * fpar[FP_RHO_MAX] >= half_width:
@@ -683,6 +737,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     mu = fpar[FP_MU]
     c = fpar[FP_DRAG]
     inertia = fpar[FP_INERTIA]
+    arc = fpar[FP_CORNER_RADIUS]
     rho, _ = corner_geometry(fpar, corner)
     chi_right, chi_left = flat_angles(fpar, n, corner)
     time_unit = math.sqrt(rho / g)
@@ -715,10 +770,10 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     max_steps = int(t_left / h_max) + 2 * int(1e6)
     for _ in range(max_steps):
         if event < 0:
-            event = _contact_event(fpar, n, corner, px, y, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+            event = _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
         if event == 4:
             # friction transition at this instant: slide (direction against the needed force)
-            normal, friction = _contact_rates(y, MODE_STICK, rho, inertia, g, mu, c, rates)
+            normal, friction = _contact_rates(y, MODE_STICK, rho, arc, inertia, g, mu, c, rates)
             if mode != MODE_STICK and abs(friction) <= mu * normal:
                 mode = MODE_STICK
                 y[3] = 0.0
@@ -750,11 +805,11 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
                 continue
         closed_form_last = False
         if not fresh:
-            _contact_rates(y, mode, rho, inertia, g, mu, c, k[0])
+            _contact_rates(y, mode, rho, arc, inertia, g, mu, c, k[0])
             fresh = True
         while True:
             step = min(h, t_left - t)
-            err = _dp5_contact(y, step, mode, rho, inertia, g, mu, c, scale, k, tmp, trial)
+            err = _dp5_contact(y, step, mode, rho, arc, inertia, g, mu, c, scale, k, tmp, trial)
             if err <= 1.0 or step <= h_min:
                 break
             h = step * max(0.2, 0.9 * err ** -0.2)
@@ -762,7 +817,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
         # leaves h as it was
         grow = 5.0 if err < 1e-4 else min(5.0, 0.9 * err ** -0.2)
         h = min(max(h if step < h else 0.0, step * grow), h_max)
-        probe = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+        probe = _contact_event(fpar, n, corner, px, trial, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
         if _event_holds(probe, stop_at_decision):
             # first sample of the dense output where the event holds, then bisection
             lo = 0.0
@@ -770,7 +825,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
             for j in range(1, EVENT_SAMPLES):
                 theta = j / EVENT_SAMPLES
                 _dp5_dense(y, step, k, theta, tmp)
-                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
                 if _event_holds(found, stop_at_decision):
                     hi = theta * step
                     break
@@ -778,7 +833,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
             while hi - lo > t_tol:
                 mid = 0.5 * (lo + hi)
                 _dp5_dense(y, step, k, mid / step, tmp)
-                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
                 if _event_holds(found, stop_at_decision):
                     hi = mid
                 else:
@@ -787,8 +842,8 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
             # event does not hold there yet, move on by doubling amounts (the full step has it)
             gap = t_tol
             while True:
-                _dp5_contact(y, hi, mode, rho, inertia, g, mu, c, scale, k, tmp, trial)
-                probe = _contact_event(fpar, n, corner, px, trial, mode, rho, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                _dp5_contact(y, hi, mode, rho, arc, inertia, g, mu, c, scale, k, tmp, trial)
+                probe = _contact_event(fpar, n, corner, px, trial, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
                 if _event_holds(probe, stop_at_decision) or hi >= step:
                     break
                 hi = min(hi + gap, step)

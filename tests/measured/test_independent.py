@@ -617,18 +617,15 @@ KERNEL_CASES = {
                                com_offset=(0.003, 0.002), speed_restitution=0.3), "capped"),
     "inertia": (_t("rigid", inertia=0.85), "rigid"),
     "inertia, loaded paper": (_t("paper", inertia=0.85, com_offset=(0.004, -0.002)), "fallback"),
-    # the kernel's support of these is on other branches (KERNEL_PENDING_CASES)
     "sliding friction": (_t("rigid", friction=0.2, friction_rule="sliding"), "capped"),
     "exact newton": (_t("rigid", friction=0.3, friction_rule="exact"), "reversal"),
     "exact energetic": (_t("rigid", friction=0.3, friction_rule="exact", restitution="energetic"), "stick"),
     "rounded corners": (_t("rigid", corner_radius=0.003), "rigid"),
 }
-KERNEL_PENDING = pytest.mark.xfail(reason="kernel support on another branch", strict=False)
-KERNEL_PENDING_CASES = ("rounded corners",)
 KERNEL_TOL = (1e-8, 1e-7)  # m, rad; measured: at most 2e-12 m and 4e-11 rad (300 drops per case)
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=KERNEL_PENDING) if n in KERNEL_PENDING_CASES else n for n in KERNEL_CASES])
+@pytest.mark.parametrize("name", list(KERNEL_CASES))
 def test_agrees_with_the_kernel_over_the_first_three_impacts(name):
     truth, exercised = KERNEL_CASES[name]
     states = release_states(20, 1)
@@ -815,7 +812,6 @@ def test_landings_near_flat_with_spin_agree_with_the_kernel():
     assert any(case in ((True, False), (False, True)) for *_, case in exercised), exercised
 
 
-@pytest.mark.xfail(reason="kernel support on another branch", strict=False)
 @pytest.mark.parametrize("kw", [dict(friction_rule="sliding"), dict(corner_radius=0.002)], ids=["sliding", "rounded"])
 def test_landings_near_flat_with_the_new_physics_agree_with_the_kernel(kw):
     """Near-flat landings with spin and slip (as above, friction 0.3, contact times 0 and

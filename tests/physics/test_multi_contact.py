@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize
 
+from dice_sweep.physics.params import FP_INERTIA
 from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
 from dice_sweep.physics.params import FP_INERTIA
 from tests.physics.conftest import TABLE1_RADIUS, make_params, run_batch, run_one
