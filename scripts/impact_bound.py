@@ -30,6 +30,7 @@ from dice_sweep.measured.impact_bound import (
     CONTACT_TIMES,
     PAPER_TWO_QUANTITY,
     QUANTITIES,
+    RULE_QUANTITIES,
     TILT_BINS,
     best_contact_time,
     first_impact_bounds,
@@ -133,6 +134,7 @@ def main():
         quantities.insert(quantities.index("paper_error") + 1, next(iter(PAPER_TWO_QUANTITY)))
     quantities = tuple(quantities) + (tuple(CONE_QUANTITIES) if args.cone is not None else ())
     summary = summarise_bounds(rows, quantities=quantities, resamples=args.resamples)
+    rule_summary = summarise_bounds(rows, quantities=("rigid_error", *RULE_QUANTITIES), resamples=args.resamples)
     # the flat_landing effect, impact by impact (docs/impact_bound.md, "Flat landing")
     flat_names, flat_headers = [], {}
     for contact_time in CONTACT_TIMES:
@@ -165,6 +167,11 @@ def main():
         f"{sum(r['two_clip'] for r in rows)}; paper's two-contact law: differs from its single-contact law (by more than "
         f"{PAPER_SAME:g} m/s) at {differs}, falls back to the rigid two-contact impulse at {sum(r['paper_two_fallback'] for r in rows)} of {len(rows)}"
         + ("" if differs else " (no column)"),
+        "",
+        "The rigid law's friction rules at the touching corner, same coefficients (the exact impact has no tangential "
+        "restitution). Median errors [95 % interval], m/s:",
+        "",
+        markdown_table(rule_summary, ("rigid_error", *RULE_QUANTITIES)),
         "",
         "flat_landing effect, impact by impact: the rigid single-contact and two-contact velocity changes blended with the "
         "two-contact share max(0, 1 - d/T), d = the second corner's height / its approach speed in the before-state. "

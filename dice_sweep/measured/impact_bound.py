@@ -91,6 +91,7 @@ __all__ = [
     "QUANTITIES",
     "CONE_QUANTITIES",
     "PAPER_TWO_QUANTITY",
+    "RULE_QUANTITIES",
 ]
 
 CONTACTS = {
@@ -118,6 +119,14 @@ QUANTITIES = {
     "noise": "velocity noise of the two side fits (estimated from their residuals)",
     "noise_bound": "one-contact bound of an admissible impact (the closest one) with that noise added: the bound's noise floor",
 }
+# the rigid law at the touching corner under each other friction rule (docs/physics.md, "Friction
+# rules"), at the same coefficients: what the rule alone changes, impact by impact
+RULE_QUANTITIES = {
+    "sliding_error": "error of the rigid law with the sliding friction rule (the cap opposing the incoming slip)",
+    "exact_error": "error of the exact Coulomb impact (Routh), Newton restitution",
+    "exact_energetic_error": "error of the exact Coulomb impact (Routh), energetic restitution",
+}
+RULES = {"sliding_error": ("sliding", "newton"), "exact_error": ("exact", "newton"), "exact_energetic_error": ("exact", "energetic")}
 # also in every row; a table column only where it differs from paper_error (scripts/impact_bound.py)
 PAPER_TWO_QUANTITY = {"paper_two_error": "error of the paper's two-contact law (resolve_two_contacts, paper model, share 1)"}
 # with first_impact_bounds(..., cone=mu): the bounds of laws that keep |P_t| <= mu P_n at each contact
@@ -623,6 +632,11 @@ def first_impact_bounds(trackset, cfg, *, rigid, paper, clean_only=True, inertia
         two_after = two_contact_after(state, cfg, model="rigid", inertia=inertia, counts=two_counts, **rigid)
         counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
         paper_after = law_after(state, cfg, model="paper", friction=math.inf, inertia=inertia, counts=counts, **paper)
+        by_rule = {
+            name: law_after(state, dataclasses.replace(cfg, contact=dataclasses.replace(cfg.contact, friction_rule=rule, restitution=law)),
+                            model="rigid", inertia=inertia, **rigid)
+            for name, (rule, law) in RULES.items()
+        }
         paper_counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
         paper_two_after = two_contact_after(state, cfg, model="paper", friction=math.inf, inertia=inertia, counts=paper_counts, **paper)
         nan = np.full(3, np.nan)
@@ -644,6 +658,7 @@ def first_impact_bounds(trackset, cfg, *, rigid, paper, clean_only=True, inertia
             "two_error": math.nan if two_after is None else velocity_error(two_after, after, inertia),
             "rigid_side_error": velocity_error(rigid_side_after, after, inertia),
             "paper_error": velocity_error(paper_after, after, inertia),
+            **{name: velocity_error(law, after, inertia) for name, law in by_rule.items()},
             "paper_two_error": math.nan if paper_two_after is None else velocity_error(paper_two_after, after, inertia),
             "change": velocity_error(before, after, inertia),
             "noise": noise,
@@ -726,6 +741,9 @@ HEADERS = {
     "noise_bound": "bound of noise alone",
     "bound_corner_cone": "bound, 1 contact, cone",
     "bound_side_cone": "bound, 2 contacts, cone",
+    "sliding_error": "rigid law, sliding rule",
+    "exact_error": "exact Coulomb, Newton",
+    "exact_energetic_error": "exact Coulomb, energetic",
 }
 
 

@@ -2,8 +2,7 @@
 which shares no code with the kernel): each library effect alone, none (several splits), two at
 once, two effects outside the library, 4x the tracking noise, flat_landing on drops that
 start near flat (its own starts, so not in LIBRARY_CASES), a loaded die under a friction rule
-the config lacks, and a second draw of the new contact physics naming the same effects (the
-cases marked KERNEL_PENDING need kernel work merged from other branches).
+the config lacks, and a second draw of the new contact physics naming the same effects.
 
 The default suite runs a few of these; all of them run with ``make test-measured``
 (``pytest -m slow tests/measured``), minutes on two cores.
@@ -84,20 +83,12 @@ LIBRARY_CASES = {
     "length_scale": ({"length_scale": 0.96}, DECLARED_RIGID, {"length_scale": 0.96}),
     "table_offset": ({"table_offset": 0.002}, DECLARED_RIGID, {"table_offset": 0.002}),
     # new contact physics (the friction rules with a friction of 0.2, so that the cone binds often);
-    # all but inertia need kernel work on other branches (KERNEL_PENDING)
     "inertia": ({"inertia": 0.85}, DECLARED_RIGID, {"inertia": 0.85}),
     "rounded_corners": ({"corner_radius": 0.004}, DECLARED_RIGID, {"corner_radius": 0.004}),
     "sliding_friction": ({"friction_rule": "sliding", "friction": 0.2}, DECLARED_RIGID, {"friction": 0.2, "beta_normal": 0.4}),
     "exact_coulomb": ({"friction_rule": "exact", "friction": 0.2}, DECLARED_RIGID, {"friction": 0.2, "beta_normal": 0.4}),
 }
-# the loop cases that need the kernel work being done on other branches; the marks go after the merge
-KERNEL_PENDING = pytest.mark.xfail(reason="kernel support on another branch", strict=False)
 NEW_EFFECTS = ("inertia", "rounded_corners", "sliding_friction", "exact_coulomb")
-PENDING_EFFECTS = ("rounded_corners", "sliding_friction", "exact_coulomb")  # inertia passes today
-
-
-def _pending(effects):
-    return [pytest.param(e, marks=KERNEL_PENDING) if e in PENDING_EFFECTS else e for e in effects]
 
 
 def _apparent_g(report):
@@ -148,13 +139,12 @@ def test_a_flight_effect_is_named_and_measured(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", _pending(e for e in LIBRARY_CASES if e != "air_drag"))
+@pytest.mark.parametrize("effect", [e for e in LIBRARY_CASES if e != "air_drag"])
 def test_every_library_effect_alone(tmp_path, effect):
     _check_library_case(tmp_path, effect)
 
 
 @pytest.mark.slow
-@KERNEL_PENDING
 @pytest.mark.parametrize("rule", ["sliding", "exact"])
 def test_a_loaded_die_is_measured_under_a_friction_rule_the_config_lacks(tmp_path, rule):
     """The drops slide by another friction rule than the declared ("aimed") one, with a friction
@@ -173,7 +163,7 @@ def test_a_loaded_die_is_measured_under_a_friction_rule_the_config_lacks(tmp_pat
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("effect", _pending(NEW_EFFECTS))
+@pytest.mark.parametrize("effect", NEW_EFFECTS)
 def test_a_second_draw_of_the_same_physics_names_the_same_effects(tmp_path, effect):
     extra, declared, _ = LIBRARY_CASES[effect]
     truth = dict(TRUTH, **extra)
