@@ -89,3 +89,14 @@ def _serves(argv, cwd, env):
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=60)
     assert process.returncode in (0, 130) and "Traceback" not in err, (out, err)
+
+
+def test_the_readmes_config_block_is_a_valid_config():
+    """The README's annotated config (every section, its keys and their defaults) parses, and
+    its values are the defaults it claims, the registry's keys among them."""
+    from dice_sweep.config import default_config, parse_config
+
+    block = re.findall(r"```toml\n(.*?)```", README.read_text(), re.S)[0]
+    cfg = parse_config(block)
+    defaults = default_config()
+    assert cfg.contact == defaults.contact and cfg.effects == defaults.effects and cfg.world == defaults.world
