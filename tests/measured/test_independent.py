@@ -767,6 +767,27 @@ def test_flat_drops_agree_with_the_kernel(sides, radius, contact):
 
 
 # landings near flat with spin and slip, by coefficients: (truth keywords, draws)
+def spin_landings(rng, count):
+    """Landing states of a square (R = 3 cm) near flat (FLAT_TILTS), with slip and a spin of up
+    to 0.95 of the one that would stop a corner of the landing side at the given speed."""
+    side = 2 * 0.03 * math.sin(math.pi / 4)
+    states = []
+    for _ in range(count):
+        speed = rng.uniform(0.4, 2.0)
+        states.append(landing(4, 0.03, FLAT_TILTS[rng.integers(5)], rng.uniform(-1.5, 1.5), speed,
+                              rng.uniform(-0.95, 0.95) * 2 * speed / side))
+    return states
+
+
+def through_three_impacts(tracks):
+    """Each track's times up to its third impact (all of them with fewer impacts)."""
+    times = []
+    for tr in tracks:
+        hits = tr["path"].impacts[:3]
+        times.append(tr["t"][tr["t"] <= hits[-1]["t"]] if hits else tr["t"])
+    return times
+
+
 SPIN_LANDINGS = {
     "rigid": (dict(contact="rigid", friction=math.inf), 12),
     "rigid+friction": (dict(contact="rigid", friction=0.3), 12),
@@ -788,18 +809,11 @@ def test_landings_near_flat_with_spin_agree_with_the_kernel():
     for name, (kw, count) in SPIN_LANDINGS.items():
         for contact_time in (0.0, 1e-3):
             truth = _t(**{"sides": 4, "circumradius": 0.03, **kw, "contact_time": contact_time})
-            side = 2 * 0.03 * math.sin(math.pi / 4)
-            states = []
-            for _ in range(count):
-                speed = rng.uniform(0.4, 2.0)
-                states.append(landing(4, 0.03, FLAT_TILTS[rng.integers(5)], rng.uniform(-1.5, 1.5), speed,
-                                      rng.uniform(-0.95, 0.95) * 2 * speed / side))
+            states = spin_landings(rng, count)
             tracks = [simulate_track(truth, s, 0.3, 2000.0) for s in states]
-            times = []
+            times = through_three_impacts(tracks)
             for tr in tracks:
-                hits = tr["path"].impacts[:3]
-                times.append(tr["t"][tr["t"] <= hits[-1]["t"]] if hits else tr["t"])
-                for hit in hits:
+                for hit in tr["path"].impacts[:3]:
                     if hit["contacts"] == 2:
                         exercised.add((hit["law"], hit["share"] < 1.0, hit["clipped"], hit.get("case", ("", "", ""))[:2]))
             for tr, t, ref in zip(tracks, times, kernel_poses(truth, states, times)):
@@ -821,17 +835,11 @@ def test_landings_near_flat_with_the_new_physics_agree_with_the_kernel(kw):
     two = 0
     for contact_time in (0.0, 1e-3):
         truth = _t("rigid", sides=4, circumradius=0.03, friction=0.3, contact_time=contact_time, **kw)
-        side = 2 * 0.03 * math.sin(math.pi / 4)
-        states = []
-        for _ in range(12):
-            speed = rng.uniform(0.4, 2.0)
-            states.append(landing(4, 0.03, FLAT_TILTS[rng.integers(5)], rng.uniform(-1.5, 1.5), speed,
-                                  rng.uniform(-0.95, 0.95) * 2 * speed / side))
+        states = spin_landings(rng, 12)
         tracks = [simulate_track(truth, s, 0.3, 2000.0) for s in states]
-        times = []
+        times = through_three_impacts(tracks)
         for tr in tracks:
             hits = tr["path"].impacts[:3]
-            times.append(tr["t"][tr["t"] <= hits[-1]["t"]] if hits else tr["t"])
             two += sum(hit["contacts"] == 2 and hit["capped"] for hit in hits)
         for tr, t, ref in zip(tracks, times, kernel_poses(truth, states, times)):
             n = t.size

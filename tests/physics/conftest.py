@@ -74,3 +74,36 @@ def random_states(rng, count, radius=TABLE1_RADIUS, y_range=(0.03, 0.2), omega_m
 @pytest.fixture
 def rng():
     return np.random.default_rng(20141)
+
+
+def follow_to_rest(params, states, until=3.0):
+    """Roll ``states`` to their decision (roll_batch), then follow them past it to ``until``
+    seconds (sample_batch with IP_CONTINUE): (decided sides, geometric-centre states at
+    ``until``)."""
+    from dice_sweep.physics.kernel import sample_batch
+    from dice_sweep.physics.params import IP_CONTINUE
+
+    fpar, ipar = params
+    stopped, _, _, _ = run_batch((fpar, ipar), states)
+    ipar = ipar.copy()
+    ipar[IP_CONTINUE] = 1
+    times = np.tile([until - 0.1, until], len(states))
+    starts = np.arange(0, times.size + 1, 2)
+    out = np.zeros((times.size, 6))
+    outcome = np.zeros(len(states), np.int8)
+    sample_batch(fpar, ipar, states, times, starts, out, outcome)
+    assert np.array_equal(outcome, stopped)
+    return stopped, out[1::2]
+
+
+def corner_impacts(rng, count, radius=TABLE1_RADIUS):
+    """Random single-corner table impacts: (state, rx, ry) of a corner below the centre that
+    approaches the table, the state's velocities uniform (m/s, rad/s)."""
+    from dice_sweep.physics.impact import corner_normal_velocity
+
+    for _ in range(count):
+        ang = rng.uniform(-math.pi + 0.2, -0.2)
+        rx, ry = radius * math.cos(ang), radius * math.sin(ang)
+        s = np.array([0.0, 0.1, 0.0, *rng.uniform(-1, 1, 2), rng.uniform(-40, 40)])
+        if corner_normal_velocity(s, rx, ry, 0.0, 1.0) < 0.0:
+            yield s, rx, ry

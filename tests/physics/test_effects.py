@@ -20,7 +20,7 @@ from dice_sweep.measured.fit import FIT_DRAG_MAX_STEP, FIT_DRAG_TOL
 from dice_sweep.physics.flight import advance_flight
 from dice_sweep.physics.params import FP_DRAG_MAX_STEP, FP_DRAG_TOL, FP_INERTIA
 from dice_sweep.roll import roll_config, sample_path
-from tests.physics.conftest import TABLE1_RADIUS, make_config, make_params, random_states, run_batch, run_one
+from tests.physics.conftest import TABLE1_RADIUS, corner_impacts, make_config, make_params, random_states, run_batch, run_one
 
 G = 9.81
 R = TABLE1_RADIUS
@@ -165,17 +165,11 @@ def test_capped_impulse_sits_on_the_cone_edge_on_the_targets_side():
     """When the target impulse leaves the friction cone, friction takes the cone's edge on
     the target's side (as Chipmunk does), even when the normal impulse throws the corner
     back against its incoming slip (the case docs/dev/validation_history.md traced)."""
-    from dice_sweep.physics.impact import corner_impulse, corner_normal_velocity
+    from dice_sweep.physics.impact import corner_impulse
 
     inertia = R * R / 3
-    rng = np.random.default_rng(11)
     seen_against_slip = 0
-    for _ in range(3000):
-        ang = rng.uniform(-math.pi + 0.2, -0.2)
-        rx, ry = R * math.cos(ang), R * math.sin(ang)
-        s = np.array([0.0, 0.1, 0.0, *rng.uniform(-1, 1, 2), rng.uniform(-40, 40)])
-        if corner_normal_velocity(s, rx, ry, 0.0, 1.0) >= 0.0:
-            continue
+    for s, rx, ry in corner_impacts(np.random.default_rng(11), 3000, R):
         target = s.copy()
         corner_impulse(target, inertia, 0.2, 0.0, math.inf, rx, ry, 0.0, 1.0)
         capped = s.copy()

@@ -24,7 +24,7 @@ from dice_sweep.physics.kernel import REC_ENERGY, REC_EVENT, STATUS_DECIDED, STA
 from dice_sweep.physics.layout import C_CLIPS, EVENT_IMPACT
 from dice_sweep.physics.multi_contact import resolve_two_contacts
 from dice_sweep.physics.params import FP_INERTIA
-from tests.physics.conftest import TABLE1_RADIUS, make_params, random_states, run_one
+from tests.physics.conftest import TABLE1_RADIUS, corner_impacts, make_params, random_states, run_one
 
 R = TABLE1_RADIUS
 N_COUNTS = 6
@@ -280,14 +280,8 @@ def test_sliding_rule_differs_from_aimed_only_where_the_normal_impulse_throws_th
     case impact.py's docstring describes); there, unclipped, P_t = -sign(u_t) mu P_n."""
     inertia = R * R / 3
     mu = 0.3
-    rng = np.random.default_rng(11)
     differ = 0
-    for _ in range(3000):
-        ang = rng.uniform(-math.pi + 0.2, -0.2)
-        rx, ry = R * math.cos(ang), R * math.sin(ang)
-        s = np.array([0.0, 0.1, 0.0, *rng.uniform(-1, 1, 2), rng.uniform(-40, 40)])
-        if corner_normal_velocity(s, rx, ry, 0.0, 1.0) >= 0.0:
-            continue
+    for s, rx, ry in corner_impacts(np.random.default_rng(11), 3000, R):
         target, aimed, sliding = s.copy(), s.copy(), s.copy()
         corner_impulse(target, inertia, 0.2, 0.0, math.inf, rx, ry, 0.0, 1.0)
         corner_impulse(aimed, inertia, 0.2, 0.0, mu, rx, ry, 0.0, 1.0, False)

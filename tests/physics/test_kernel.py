@@ -20,7 +20,7 @@ from dice_sweep.physics.kernel import (
 )
 from dice_sweep.geometry import corners, inertia_ratio
 from dice_sweep.roll import sample_path
-from tests.physics.conftest import TABLE1_RADIUS, make_config, make_params, random_states, run_batch, run_one
+from tests.physics.conftest import TABLE1_RADIUS, follow_to_rest, make_config, make_params, random_states, run_batch, run_one
 
 G = 9.81
 R = TABLE1_RADIUS
@@ -65,11 +65,12 @@ def test_energy_never_increases_over_whole_rolls(method, separation, rng):
         assert np.all(np.diff(energy) <= 1e-12 * np.abs(energy[:-1]) + 1e-15)
 
 
-def test_mirror_symmetry_maps_side_k_to_n_minus_1_minus_k(rng):
+@pytest.mark.parametrize("corner_radius", [0.0, 0.2 * TABLE1_RADIUS])
+def test_mirror_symmetry_maps_side_k_to_n_minus_1_minus_k(rng, corner_radius):
     """x -> -x, vx -> -vx, omega -> -omega, phi -> pi - phi maps side k to side n-1-k, with
-    and without walls (the walls must be mirror images of each other)."""
+    and without walls (the walls must be mirror images of each other), sharp or rounded."""
     for separation in (None, 0.06):
-        params = make_params(sides=5, separation=separation)
+        params = make_params(sides=5, separation=separation, corner_radius=corner_radius)
         states = random_states(rng, 400, y_range=(0.03, 0.08), omega_max=20.0)
         mirrored = states.copy()
         mirrored[:, [0, 3, 5]] *= -1
@@ -223,21 +224,8 @@ def test_side_below_numbering():
 def test_continued_roll_comes_to_rest_on_the_decided_side(model, rng):
     """With IP_CONTINUE the kernel follows the die past the decision until it lies still: on
     the decided side, its centre at the apothem, no longer moving."""
-    from dice_sweep.physics.kernel import sample_batch
-    from dice_sweep.physics.params import IP_CONTINUE
-
     fpar, ipar = make_params(model=model, beta_t=0.0 if model == "rigid" else -0.35, t_max=3.0)
-    states = random_states(rng, 30, y_range=(0.03, 0.15))
-    stopped, _, _, _ = run_batch((fpar, ipar), states)
-    ipar = ipar.copy()
-    ipar[IP_CONTINUE] = 1
-    times = np.tile([2.9, 3.0], len(states))
-    starts = np.arange(0, times.size + 1, 2)
-    out = np.zeros((times.size, 6))
-    outcome = np.zeros(len(states), np.int8)
-    sample_batch(fpar, ipar, states, times, starts, out, outcome)
-    assert np.array_equal(outcome, stopped)
-    final = out[1::2]
+    stopped, final = follow_to_rest((fpar, ipar), random_states(rng, 30, y_range=(0.03, 0.15)))
     assert np.allclose(final[:, 1], R * math.cos(math.pi / 4), atol=1e-6)
     assert np.all(np.abs(final[:, 3:]) < 1e-3)
     sides = [side_below(phi, fpar, 4) for phi in final[:, 2]]

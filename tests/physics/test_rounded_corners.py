@@ -21,7 +21,7 @@ from dice_sweep.physics.kernel import REC_ENERGY, REC_KIND, REC_STATE, REC_T, SE
 from dice_sweep.physics.outcome import decided_side, rest_height
 from dice_sweep.physics.params import FP_INERTIA, FP_RHO_MAX
 from dice_sweep.physics.pivot import PIVOT_TIMEOUT, pivot_ode
-from tests.physics.conftest import TABLE1_RADIUS, make_params, random_states, run_batch, run_one
+from tests.physics.conftest import TABLE1_RADIUS, follow_to_rest, make_params, random_states, run_batch, run_one
 
 G = 9.81
 R = TABLE1_RADIUS
@@ -350,22 +350,6 @@ def test_fair_rounded_square_gives_each_side_a_quarter(rng):
     assert chisquare(counts).pvalue > 1e-3, counts
 
 
-def test_mirror_symmetry_maps_side_k_to_n_minus_1_minus_k(rng):
-    """x -> -x, vx -> -vx, omega -> -omega, phi -> pi - phi maps side k to n-1-k, with and
-    without walls, for a rounded die (as tests/physics/test_kernel.py does for sharp ones)."""
-    for separation in (None, 0.06):
-        params = make_params(sides=5, separation=separation, corner_radius=0.2 * R)
-        states = random_states(rng, 400, y_range=(0.03, 0.08), omega_max=20.0)
-        mirrored = states.copy()
-        mirrored[:, [0, 3, 5]] *= -1
-        mirrored[:, 2] = math.pi - states[:, 2]
-        out, status, _, _ = run_batch(params, states)
-        out_m, status_m, _, _ = run_batch(params, mirrored)
-        ok = (status == STATUS_DECIDED) & (status_m == STATUS_DECIDED)
-        assert ok.mean() > 0.99
-        assert np.mean(out_m[ok] == 4 - out[ok]) > 0.99, separation
-
-
 def test_no_arc_ever_inside_the_table_or_a_wall(rng):
     """Sampled densely along event-driven paths, every arc centre stays at least r from the
     table and the walls, to round-off."""
@@ -387,21 +371,10 @@ def test_no_arc_ever_inside_the_table_or_a_wall(rng):
 def test_continued_rounded_roll_comes_to_rest_on_the_decided_side(rng):
     """Followed past the decision (IP_CONTINUE, as a fit does), a rounded die comes to rest on
     the side decided, its centre at the apothem (which rounding keeps), no longer moving."""
-    from dice_sweep.physics.kernel import sample_batch, side_below
-    from dice_sweep.physics.params import IP_CONTINUE
+    from dice_sweep.physics.kernel import side_below
 
     fpar, ipar = make_params(corner_radius=0.2 * R, t_max=3.0)
-    states = random_states(rng, 30, y_range=(0.03, 0.15))
-    stopped, _, _, _ = run_batch((fpar, ipar), states)
-    ipar = ipar.copy()
-    ipar[IP_CONTINUE] = 1
-    times = np.tile([2.9, 3.0], len(states))
-    starts = np.arange(0, times.size + 1, 2)
-    out = np.zeros((times.size, 6))
-    outcome = np.zeros(len(states), np.int8)
-    sample_batch(fpar, ipar, states, times, starts, out, outcome)
-    assert np.array_equal(outcome, stopped)
-    final = out[1::2]
+    stopped, final = follow_to_rest((fpar, ipar), random_states(rng, 30, y_range=(0.03, 0.15)))
     assert np.allclose(final[:, 1], R * math.cos(math.pi / 4), atol=1e-6)
     assert np.all(np.abs(final[:, 3:]) < 1e-3)
     assert [side_below(phi, fpar, 4) for phi in final[:, 2]] == list(stopped)
