@@ -183,29 +183,3 @@ def exact_impulse(u_t, u_n, k_tt, k_tn, k_nn, beta_n, mu, energetic):
         energetic = True  # Newton's impulse would gain: the energetic terminal impulse instead
         clipped = 1
     return p_t, p_n, clipped
-
-
-@numba.njit(cache=True)
-def exact_corner_impulse(s, inertia, beta_n, mu, energetic, rx, ry, nx, ny):
-    """Apply the exact Coulomb impact at the corner (rx, ry) on the surface of normal (nx, ny)
-    to the centre-of-mass state s, in place (frame and K as in impact.corner_impulse).
-
-    Returns 1 when the energetic or frictionless impulse replaced one that would have gained
-    energy (an energy clip), else 0.
-    """
-    tx = ny
-    ty = -nx
-    a_t = tx * (-ry) + ty * rx  # r_perp . t, r_perp = z x r
-    a_n = nx * (-ry) + ny * rx
-    u_t = tx * (s[3] - s[5] * ry) + ty * (s[4] + s[5] * rx)
-    u_n = nx * (s[3] - s[5] * ry) + ny * (s[4] + s[5] * rx)
-    k_tt = 1.0 + a_t * a_t / inertia
-    k_tn = a_t * a_n / inertia
-    k_nn = 1.0 + a_n * a_n / inertia
-    p_t, p_n, clipped = exact_impulse(u_t, u_n, k_tt, k_tn, k_nn, beta_n, mu, energetic)
-    px = p_t * tx + p_n * nx
-    py = p_t * ty + p_n * ny
-    s[3] += px
-    s[4] += py
-    s[5] += (rx * py - ry * px) / inertia
-    return clipped

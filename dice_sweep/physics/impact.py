@@ -54,7 +54,7 @@ from dice_sweep.physics.params import (
     IP_MODEL,
     IP_RESTITUTION,
 )
-from dice_sweep.physics.exact_impact import exact_corner_impulse
+from dice_sweep.physics.exact_impact import exact_impulse
 from dice_sweep.physics.layout import (
     C_CLIPS,
     C_FALLBACK,
@@ -128,6 +128,36 @@ def apply_impulse(s, inertia, rx, ry, p_t, p_n, nx, ny):
 
 
 @numba.njit(cache=True)
+def contact_frame(s, inertia, rx, ry, nx, ny):
+    """The contact point (rx, ry) from the centre of mass in the surface frame (t = (n_y, -n_x),
+    n): its tangential and normal velocity (m/s) and the contact mass matrix per unit mass,
+    K = 1 + r_perp r_perp^T / I, as (u_t, u_n, K_tt, K_tn, K_nn). Every single-contact law
+    starts here."""
+    tx = ny
+    ty = -nx
+    # r_perp = z x r: the corner velocity is v + omega r_perp
+    a_t = tx * (-ry) + ty * rx
+    a_n = nx * (-ry) + ny * rx
+    u_t = tx * (s[3] - s[5] * ry) + ty * (s[4] + s[5] * rx)
+    u_n = nx * (s[3] - s[5] * ry) + ny * (s[4] + s[5] * rx)
+    return u_t, u_n, 1.0 + a_t * a_t / inertia, a_t * a_n / inertia, 1.0 + a_n * a_n / inertia
+
+
+@numba.njit(cache=True)
+def exact_corner_impulse(s, inertia, beta_n, mu, energetic, rx, ry, nx, ny):
+    """Apply the exact Coulomb impact (physics/exact_impact.py) at the corner (rx, ry) on the
+    surface of normal (nx, ny) to the centre-of-mass state s, in place.
+
+    Returns 1 when the energetic or frictionless impulse replaced one that would have gained
+    energy (an energy clip), else 0.
+    """
+    u_t, u_n, k_tt, k_tn, k_nn = contact_frame(s, inertia, rx, ry, nx, ny)
+    p_t, p_n, clipped = exact_impulse(u_t, u_n, k_tt, k_tn, k_nn, beta_n, mu, energetic)
+    apply_impulse(s, inertia, rx, ry, p_t, p_n, nx, ny)
+    return clipped
+
+
+@numba.njit(cache=True)
 def corner_impulse(s, inertia, beta_n, beta_t, mu, rx, ry, nx, ny, sliding=False):
     """Impulse at the corner (rx, ry) with restitution targets and a Coulomb cap mu.
 
@@ -136,16 +166,7 @@ def corner_impulse(s, inertia, beta_n, beta_t, mu, rx, ry, nx, ny, sliding=False
     Modifies s in place. Returns 1 when the impulse had to be moved towards the frictionless
     one to keep the impact from creating energy or pulling on the surface, else 0.
     """
-    tx = ny
-    ty = -nx
-    # r_perp = z x r: the corner velocity is v + omega r_perp
-    a_t = tx * (-ry) + ty * rx
-    a_n = nx * (-ry) + ny * rx
-    u_t = tx * (s[3] - s[5] * ry) + ty * (s[4] + s[5] * rx)
-    u_n = nx * (s[3] - s[5] * ry) + ny * (s[4] + s[5] * rx)
-    k_tt = 1.0 + a_t * a_t / inertia
-    k_tn = a_t * a_n / inertia
-    k_nn = 1.0 + a_n * a_n / inertia
+    u_t, u_n, k_tt, k_tn, k_nn = contact_frame(s, inertia, rx, ry, nx, ny)
     det = k_tt * k_nn - k_tn * k_tn
     du_t = -(1.0 + beta_t) * u_t
     du_n = -(1.0 + beta_n) * u_n

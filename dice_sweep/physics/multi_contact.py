@@ -55,9 +55,8 @@ import numpy as np
 
 from dice_sweep.physics.flight import corner_offset, surface_frame
 from dice_sweep.physics.impact import (
-    C_CLIPS, C_FALLBACK, beta_normal_at, contact_lever, corner_normal_velocity, paper_law, resolve_impact,
+    C_CLIPS, C_FALLBACK, beta_normal_at, contact_lever, corner_normal_velocity, exact_corner_impulse, paper_law, resolve_impact,
 )
-from dice_sweep.physics.exact_impact import exact_corner_impulse
 from dice_sweep.physics.params import (
     FP_ALPHA,
     FP_BT,

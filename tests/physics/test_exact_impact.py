@@ -17,9 +17,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from dice_sweep.physics.exact_impact import exact_corner_impulse, exact_impulse
+from dice_sweep.physics.exact_impact import exact_impulse
 from dice_sweep.physics.flight import SURF_LEFT, SURF_RIGHT, SURF_TABLE, surface_frame
-from dice_sweep.physics.impact import corner_impulse, corner_normal_velocity, corner_vector, resolve_impact
+from dice_sweep.physics.impact import corner_impulse, corner_normal_velocity, corner_vector, exact_corner_impulse, resolve_impact
 from dice_sweep.physics.kernel import REC_ENERGY, REC_EVENT, STATUS_DECIDED, STATUS_STALLED
 from dice_sweep.physics.layout import C_CLIPS, EVENT_IMPACT
 from dice_sweep.physics.multi_contact import resolve_two_contacts
