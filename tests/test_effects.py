@@ -229,3 +229,44 @@ def test_the_worked_example_runs(tmp_path):
     slowed = runner.invoke(main, args + ["--set", "effects.speed_restitution=0.5"])
     assert plain.exit_code == 0 and slowed.exit_code == 0, slowed.output
     assert plain.output != slowed.output
+
+
+NEW_ENTRY = '''
+import math, dataclasses
+from dice_sweep import effects
+entry = effects.Effect(
+    "angular_drag", "flight", "spin damped in flight, d omega / dt = -k omega",
+    params=(effects.Param("angular_drag", "1/s", "effects.angular_drag", effects._fixed(0.0, 10.0), 0.0, (0.5,), 0.1),),
+    config_keys=(effects.ConfigKey("effects", "angular_drag", 0.0, "1/s", low=0.0, slot="FP_ANGULAR_DRAG"),),
+    signature="flight_spin_change", signature_note="spin change in flight",
+)
+effects.EFFECTS = effects.EFFECTS + (entry,)
+effects._BY_NAME[entry.name] = entry
+effects._PARAMS["angular_drag"] = entry.params[0]
+from dice_sweep.config import parse_config, config_to_toml
+from dice_sweep.physics.params import pack_params, slot, FP_ANGULAR_DRAG
+cfg = parse_config("[effects]\\nangular_drag = 0.25\\n")
+assert cfg.effects.angular_drag == 0.25 and parse_config(config_to_toml(cfg)) == cfg
+fpar, ipar = pack_params(cfg)
+assert fpar[FP_ANGULAR_DRAG] == 0.25 == fpar[slot("effects.angular_drag")]
+assert effects.with_values(parse_config(""), ("angular_drag",), {"angular_drag": 0.5}).effects.angular_drag == 0.5
+try:
+    parse_config("[effects]\\nangular_drag = -1\\n")
+except Exception as error:
+    assert "effects.angular_drag" in str(error) and "allowed range" in str(error), error
+else:
+    raise AssertionError("a negative angular_drag was accepted")
+print("ok")
+'''
+
+
+def test_a_registry_entry_alone_makes_a_working_config_key_and_kernel_slot():
+    """Issue 28: a new effect's registry entry alone made every config parse fail with a bare
+    TypeError. Now the entry alone gives the config key (validated, written back, settable by
+    a fit) and its kernel slot, packed; only the kernel lines that read the slot and a test are
+    left to write (test_every_registry_slot_is_read_by_a_kernel fails until a kernel reads it)."""
+    import subprocess
+    import sys
+
+    result = subprocess.run([sys.executable, "-c", NEW_ENTRY], capture_output=True, text=True)
+    assert result.returncode == 0 and result.stdout.strip() == "ok", result.stdout + result.stderr
