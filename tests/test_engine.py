@@ -61,6 +61,11 @@ PATHS = {
     "loaded": ("loaded_die.toml", ()),
     "flat_landing": ("fig08_rigid.toml", ("effects.contact_time=3e-4", "contact.friction=0.5")),
     "fixed_step": ("table1.toml", ("integrator.method=fixed_step",)),
+    "sliding_rule": ("fig08_rigid.toml", ("contact.friction=0.2", "contact.friction_rule=sliding")),
+    "friction_02": ("fig08_rigid.toml", ("contact.friction=0.2",)),
+    "exact_rule": ("fig09.toml", ("contact.model=rigid", "contact.friction=0.3", "contact.friction_rule=exact",
+                                  "contact.restitution=energetic")),
+    "rounded_inertia": ("fig08_rigid.toml", ("contact.friction=0.4", "effects.corner_radius=0.002", "effects.inertia=0.8")),
 }
 
 

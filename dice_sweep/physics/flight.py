@@ -395,7 +395,7 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     h_ode = max_step
     for _ in range(MAX_SEARCH_STEPS):
         # bound |a| over the next h_ode: speed can grow by at most g h_ode meanwhile
-        speed = math.hypot(out[3], out[4]) + g * h_ode
+        speed = math.sqrt(out[3] * out[3] + out[4] * out[4]) + g * h_ode  # not hypot: see outcome.rest_height
         drag_accel = c * speed * speed
         step = _scan(out, fpar, n, n_surf, g + drag_accel, drag_accel, tol, min_step, contact_speed, hit)
         if step < 0.0:
