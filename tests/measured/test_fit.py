@@ -108,7 +108,7 @@ def test_the_fits_coarser_drag_steps_move_no_residual_by_a_nanometre(segments, m
     assert np.abs(coarse - fine).max() < 1e-9
 
 
-def test_a_parameter_the_frames_hardly_see_does_not_freeze_the_fit(tmp_path, monkeypatch):
+def test_a_parameter_the_frames_hardly_see_does_not_freeze_the_fit(tmp_path):
     """Caught on hexagons at 1000 Hz: with beta_tangential 0, friction 0.5 caps no impulse, its
     curvature was 1e-19 of beta_normal's, Marquardt damping let finite-difference noise send it
     1e5 out, every trial was clipped to its bound and worse, and the fit stopped at its start
@@ -123,10 +123,23 @@ def test_a_parameter_the_frames_hardly_see_does_not_freeze_the_fit(tmp_path, mon
     start = shooting.start_values(cfg, shooting.ModelSpec.of(cfg))
     fit = shooting.fit_spec(cfg, shooting.ModelSpec.of(cfg), seg)
     assert fit.params["beta_normal"] > start["beta_normal"] + 0.05  # 0.384 (truth 0.4; a local optimum, see docs)
-    monkeypatch.setattr(shooting, "PARAM_DAMPING_FLOOR", 0.0)
-    frozen = shooting.fit_spec(cfg, shooting.ModelSpec.of(cfg), seg)
-    assert frozen.params["beta_normal"] == pytest.approx(start["beta_normal"], abs=1e-6)
-    assert fit.cost < 0.5 * frozen.cost
+    # (This test also refitted with the floor at 0 and asserted that the fit froze at its start.
+    # Whether it freezes is a matter of finite-difference round-off: on the 2-core machine of
+    # 2026-11-27 the unfloored fit reached beta_normal 0.400 at 3e2d2a0 too, and the test failed
+    # there. What the floor does is pinned by the next test instead.)
+
+
+def test_the_damping_floor_lifts_a_curvature_the_frames_hardly_see():
+    """Friction 0.5 capping no impulse had a curvature 1e-19 of beta_normal's; the floor makes
+    it at least PARAM_DAMPING_FLOOR of the largest, in registry scales, so that Marquardt
+    damping bounds its step."""
+    scales = np.array([0.1, 0.1])
+    hpp = np.diag([2.0e4, 2.0e-15])
+    floor = shooting._damping_floor(hpp, scales)
+    largest = 2.0e4 * 0.1**2
+    assert floor == pytest.approx(np.full(2, shooting.PARAM_DAMPING_FLOOR * largest) / scales**2, rel=1e-12)
+    assert floor[1] > 1e8 * hpp[1, 1]  # the unseen parameter's step is bounded by the floor, not by its curvature
+    assert shooting._damping_floor(np.zeros((0, 0)), np.zeros(0)).size == 0
 
 
 def test_the_damping_floor_is_a_share_of_the_largest_scaled_curvature():
