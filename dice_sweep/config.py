@@ -587,10 +587,6 @@ def _build(raw, checker):
     if walls.separation is not None and walls.separation <= 2.0 * die.circumradius:
         wider = dataclasses.replace(_SECTION_SPECS["walls"]["separation"], low=2.0 * die.circumradius)
         raise checker.error("walls.separation", f"{walls.separation!r} is outside the {_allowed(wider)} (more than twice the circumradius)")
-    offset = sections["effects"].com_offset
-    apothem = float(geometry.apothem(die.sides, die.circumradius))
-    if math.hypot(*offset) >= apothem:
-        raise checker.error("effects.com_offset", f"{list(offset)!r} m is not inside the die (allowed: |offset| < apothem = {_fmt(apothem)} m)")
     partial = Config(**sections, grid=None, source=checker.source)
     for keys in effect_registry.config_key_specs().values():
         for key in keys.values():

@@ -169,6 +169,13 @@ def _inertia_allowed(cfg):
     return f"allowed range ({low:.6g}, {1.0 / ratio:.6g}] for this die (above: more than all the mass at the corners; below: none about the centre of mass)"
 
 
+def _com_offset_allowed(cfg):
+    """None if a loaded die's centre of mass lies inside its inscribed circle; else the range."""
+    dx, dy = cfg.effects.com_offset
+    apothem = _apothem(cfg)
+    return None if math.hypot(dx, dy) < apothem else f"allowed range |offset| < apothem = {apothem:.6g} m (inside the die)"
+
+
 def _corner_radius_allowed(cfg):
     """None if [effects] corner_radius is below the apothem; else the allowed range."""
     apothem = _apothem(cfg)
@@ -221,7 +228,7 @@ EFFECTS = (
             Param("com_dx", "m", "effects.com_offset[0]", lambda cfg: (-0.5 * _apothem(cfg), 0.5 * _apothem(cfg)), 0.0, (0.002, -0.002), 1e-3),
             Param("com_dy", "m", "effects.com_offset[1]", lambda cfg: (-0.5 * _apothem(cfg), 0.5 * _apothem(cfg)), 0.0, (0.002, -0.002), 1e-3),
         ),
-        config_keys=(ConfigKey("effects", "com_offset", (0.0, 0.0), "m", length=2, slot="FP_COM_X"),),
+        config_keys=(ConfigKey("effects", "com_offset", (0.0, 0.0), "m", length=2, slot="FP_COM_X", check=_com_offset_allowed),),
         signature="flight_wobble_at_spin",
         signature_note="amplitude of the free-flight residual of the centre at the spin angle (cos phi, sin phi)",
     ),
