@@ -69,7 +69,7 @@ for key in ["grid_minmax","grid_param","grid_same","grid_num","grid_below","nan"
     add("sweep", F[key], "-o", str(W/f"s_{key}.h5"), out=W/f"s_{key}.h5")
 # initial.y0=-1 puts the roll's start in the table (fig08 sweeps y0, roll starts from [initial])
 add("roll", f"{C}/fig08.toml", "--set", "initial.y0=-1")
-for k, s in enumerate(["initial.y0=abc", "nokey", "die.sides=2", "grid.x.num=0", "die.=3", "=3", "initial.y0=", "integrator.method=rk4", "contact.model=foo", "world.g=-9.81", "world.g=0", "contact.beta_normal=1.5", "contact.friction=-1", "effects.air_drag=-1", "effects.foo=1", "grid.x.min=nan", "grid.x.param=foo", "grid.y.min=-0.5"]):
+for k, s in enumerate(["initial.y0=abc", "nokey", "die.sides=2", "grid.x.num=0", "die.=3", "=3", "initial.y0=", "integrator.method=rk4", "contact.model=foo", "world.g=-9.81", "world.g=0", "contact.beta_normal=1.5", "contact.friction=-1", "effects.air_drag=-1", "effects.foo=1", "contact.friction_rule=exakt", "contact.restitution=7", "effects.inertia=4", "effects.inertia=0", "effects.corner_radius=0.5", "effects.corner_radius=-1", "effects.com_offset=[0.02, 0]", "grid.x.min=nan", "grid.x.param=foo", "grid.y.min=-0.5"]):
     add("roll", f"{C}/fig08.toml", "--set", s)
     add("sweep", f"{C}/demo.toml", "-o", str(W/f"set{k}.h5"), "--set", s, out=W/f"set{k}.h5")
 sw = lambda *a, out="sw.h5": add("sweep", f"{C}/demo.toml", "-o", str(W/out), *a, out=W/out)
