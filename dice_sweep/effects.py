@@ -151,8 +151,11 @@ class Effect:
 
 
 def _uniform_inertia_ratio(sides):
-    """Eq. 25: I / (M R^2) of a uniform regular n-gon plate about its centre."""
-    return math.sin(math.pi / sides) ** 2 / 6.0 + math.cos(math.pi / sides) ** 2 / 2.0
+    """Eq. 25: I / (M R^2) of a uniform regular n-gon plate about its centre (geometry's, imported
+    here on use: this module is read for a fast --help, before numpy)."""
+    from dice_sweep.geometry import inertia_ratio
+
+    return float(inertia_ratio(sides))
 
 
 def _apothem(cfg):

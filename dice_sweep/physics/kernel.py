@@ -93,7 +93,7 @@ from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exp
     STATUS_T_MAX,
 )
 from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
-from dice_sweep.physics.outcome import DECISION_MARGIN, decided_side, decision_bound, rest_height, side_below  # noqa: F401
+from dice_sweep.physics.outcome import DECISION_MARGIN, barrier_height, decided_side, decision_bound, rest_height, side_below  # noqa: F401
 from dice_sweep.physics.pivot import (
     PIVOT_BALANCED,
     PIVOT_DECIDED,
@@ -267,10 +267,7 @@ def _slide_time(speed, fpar, side, n, to_rest):
         return math.inf if to_rest else 0.0
     if to_rest:
         return speed / decel
-    rho_a, _ = corner_geometry(fpar, side)
-    rho_b, _ = corner_geometry(fpar, (side + 1) % n)
-    barrier = min(rho_a, rho_b) + fpar[FP_CORNER_RADIUS]  # rounded corners: over the arc
-    spare = fpar[FP_G] * (barrier * (1.0 - DECISION_MARGIN) - rest_height(fpar, n, side))
+    spare = fpar[FP_G] * (barrier_height(fpar, n, side) * (1.0 - DECISION_MARGIN) - rest_height(fpar, n, side))
     decided_speed = math.sqrt(max(2.0 * spare, 0.0)) * (1.0 - DECIDED_SPEED_MARGIN)
     return max(speed - decided_speed, 0.0) / decel
 

@@ -66,10 +66,17 @@ def decided_side(s, fpar, n):
     if not energy < decision_bound(fpar):
         return -1
     k = side_below(s[2], fpar, n)
-    rho_a = fpar[FP_CORNERS + CORNER_STRIDE * k]
-    rho_b = fpar[FP_CORNERS + CORNER_STRIDE * ((k + 1) % n)]
-    barrier = fpar[FP_G] * (min(rho_a, rho_b) + fpar[FP_CORNER_RADIUS]) * (1.0 - DECISION_MARGIN)
+    barrier = fpar[FP_G] * barrier_height(fpar, n, k) * (1.0 - DECISION_MARGIN)
     return k if energy < barrier else -1
+
+
+@numba.njit(cache=True)
+def barrier_height(fpar, n, side):
+    """Height (m) the centre of mass must reach to leave ``side``: over the nearer of its two
+    corners, min(rho_a, rho_b), or over their arcs, plus r (exact: + 0.0 when r = 0)."""
+    rho_a = fpar[FP_CORNERS + CORNER_STRIDE * side]
+    rho_b = fpar[FP_CORNERS + CORNER_STRIDE * ((side + 1) % n)]
+    return min(rho_a, rho_b) + fpar[FP_CORNER_RADIUS]
 
 
 @numba.njit(cache=True)
