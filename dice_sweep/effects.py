@@ -279,7 +279,7 @@ EFFECTS = (
         "exact_coulomb", "contact",
         "the exact Coulomb impact at the touching corner(s): the contact velocity integrated over the normal impulse "
         "(Routh's method) with slip, stick and slip reversal, Newton or energetic restitution ([contact] restitution); "
-        "no tangential restitution; two contacts at once by a documented fallback (docs/physics.md, \"Friction rules\")",
+        "no tangential restitution; two contacts at once integrated with equal contact springs (docs/physics.md, \"Friction rules\")",
         switch=(("contact.model", "rigid"), ("contact.friction_rule", "exact")),
         config_keys=(
             ConfigKey("contact", "restitution", "newton", "", choices=RESTITUTION_LAWS, slot="IP_RESTITUTION",

@@ -30,14 +30,11 @@ textbook sliding branch; the enumeration chooses the case as above, and a tangen
 on an edge is moved to the edge opposing that row's incoming tangential velocity and the case
 solved again (with one contact this is impact.corner_impulse's sliding branch); if that case
 pulls or leaves a contact approaching it is a jam and the frictionless impulse is used.
-"exact": the integrated Coulomb impact is single-contact only (physics/exact_impact.py).
-With two contacts: when one contact's exact impact leaves the other no slower than Newton's
-law asks (the other needs no impulse), that impact is the answer (of two, the more
-dissipative). Otherwise the enumeration with the sliding rule and the sticking target
-u_t' = 0 in place of -beta_tangential u_t, and Newton restitution whatever ``[contact]
-restitution`` says: the exact law's incoming slide and its sticking end. That misses slip
-reversal within an impact that both contacts carry, and the energetic law's phase coupling
-(docs/physics.md, "Friction rules").
+"exact": the compliant two-contact Coulomb impact (physics/two_contact_exact.py: equal normal
+springs at the two contacts, Coulomb friction with stick and slip, per-contact energetic
+restitution; one contact's closed-form exact impact when the other is never compressed). If its
+integration does not end, the enumeration with the sliding rule and the sticking target
+u_t' = 0 in place of -beta_tangential u_t is used (docs/physics.md, "Friction rules").
 
 Rounded corners: each contact's lever is its contact point (impact.contact_lever), the arc
 centre less r times the surface normal.
@@ -55,7 +52,7 @@ import numpy as np
 
 from dice_sweep.physics.flight import corner_offset, surface_frame
 from dice_sweep.physics.impact import (
-    C_CLIPS, C_FALLBACK, beta_normal_at, contact_lever, corner_normal_velocity, exact_corner_impulse, paper_law, resolve_impact,
+    C_CLIPS, C_FALLBACK, beta_normal_at, contact_lever, corner_normal_velocity, paper_law, resolve_impact,
 )
 from dice_sweep.physics.params import (
     FP_ALPHA,
@@ -70,6 +67,7 @@ from dice_sweep.physics.params import (
     IP_MODEL,
     IP_RESTITUTION,
 )
+from dice_sweep.physics.two_contact_exact import exact_two_contacts
 from dice_sweep.physics.layout import FRICTION_RULE_AIMED, FRICTION_RULE_EXACT, MODEL_PAPER, RESTITUTION_ENERGETIC
 
 MAX_ROWS = 4  # two normal rows and at most two tangential rows
@@ -420,45 +418,6 @@ def resolve_two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, shar
     return True
 
 
-@numba.njit(cache=True)
-def _exact_alone(s, fpar, ipar, contacts, u_a, u_b, counts):
-    """The exact impact (physics/exact_impact.py) at one of the two contacts, when it leaves the
-    other at least as fast as Newton's law asks (u_n' >= -beta_n u_n, as for a contact without
-    impulse in :func:`best_impulse`); of two such, the one leaving less kinetic energy. Applied
-    to s in place; False, s untouched, when neither does."""
-    inertia = fpar[FP_INERTIA]
-    energetic = ipar[IP_RESTITUTION] == RESTITUTION_ENERGETIC
-    trial = np.empty(6)
-    best = np.empty(6)
-    best_energy = math.inf
-    best_clip = 0
-    for i in range(2):
-        u_i = u_a if i == 0 else u_b
-        if u_i >= 0.0:
-            continue
-        j = 1 - i
-        for k in range(6):
-            trial[k] = s[k]
-        beta_n = beta_normal_at(fpar, -u_i)
-        clip = exact_corner_impulse(trial, inertia, beta_n, fpar[FP_MU], energetic,
-                                    contacts[i, 2], contacts[i, 3], contacts[i, 0], contacts[i, 1])
-        u_j = corner_normal_velocity(trial, contacts[j, 2], contacts[j, 3], contacts[j, 0], contacts[j, 1])
-        if u_j < contacts[j, 4]:
-            continue  # the other contact would need an impulse of its own
-        energy = trial[3] * trial[3] + trial[4] * trial[4] + inertia * trial[5] * trial[5]
-        if energy < best_energy:
-            best_energy = energy
-            best_clip = clip
-            for k in range(6):
-                best[k] = trial[k]
-    if math.isinf(best_energy):
-        return False
-    for k in range(3, 6):
-        s[k] = best[k]
-    counts[C_CLIPS] += best_clip
-    return True
-
-
 # One call site per function below: numba links a callee's code into each caller and LLVM
 # inlines it per call site, so two calls of best_impulse compiled it twice (a cold start
 # 6 s longer; scripts/bench.py, cold).
@@ -493,14 +452,20 @@ def _two_contacts(s, fpar, ipar, surf_a, corner_a, surf_b, corner_b, counts):
     inertia = fpar[FP_INERTIA]
     changes = np.empty((2, 3))  # with friction, frictionless
     energies = np.empty(2)
-    # friction rules (module docstring): "exact" has no two-contact integration here; one
-    # contact's exact impact when it leaves the other separating, else the sliding edge with
-    # the sticking target u_t' = 0 (the exact law's incoming slide and its sticking end)
+    # friction rules (module docstring): "exact" integrates the compliant two-contact impact;
+    # if that does not end, the sliding edge with the sticking target u_t' = 0
     rule = ipar[IP_FRICTION_RULE]
-    if rule == FRICTION_RULE_EXACT and _exact_alone(s, fpar, ipar, contacts, u_a, u_b, counts):
-        if ipar[IP_MODEL] == MODEL_PAPER:
-            counts[C_FALLBACK] += 1
-        return True
+    if rule == FRICTION_RULE_EXACT:
+        beta = np.empty(2)
+        beta[0] = beta_normal_at(fpar, max(-u_a, 0.0))
+        beta[1] = beta_normal_at(fpar, max(-u_b, 0.0))
+        ok, clips = exact_two_contacts(s, inertia, fpar[FP_MU], ipar[IP_RESTITUTION] == RESTITUTION_ENERGETIC,
+                                       contacts, beta, same_surface)
+        if ok:
+            counts[C_CLIPS] += clips
+            if ipar[IP_MODEL] == MODEL_PAPER:
+                counts[C_FALLBACK] += 1
+            return True
     beta_t = 0.0 if rule == FRICTION_RULE_EXACT else fpar[FP_BT]
     sliding = rule != FRICTION_RULE_AIMED
     for k in range(2):
