@@ -116,7 +116,7 @@ def reference(v, contacts, e, mu, same_surface, inertia, steps_per_period=16000)
 def test_a_square_landing_square_on_bounces_straight_up(e):
     v, loaded = integrate([0.0, -1.3, 0.0], flat_contacts(), [e, e], 0.5)
     assert loaded.all()
-    assert v[1] == pytest.approx(1.3 * max(e, 0.01), abs=2e-5 * 1.3)  # e at least LEAST_RESTITUTION
+    assert v[1] == pytest.approx(1.3 * max(e, 0.01), abs=3e-5 * 1.3)  # e at least LEAST_RESTITUTION
     assert v[0] == pytest.approx(0.0, abs=1e-12) and v[2] == pytest.approx(0.0, abs=1e-9)
 
 
