@@ -523,13 +523,15 @@ def _first_overlap(clearance, reach, tolerance):
     return i, np.flatnonzero(reach > clearance[i] + tolerance)[0]
 
 
-def _check_starts_clear(die, walls, initial, grid, checker):
-    """Refuse any start (the initial state or any grid point) with a corner inside a surface."""
+def _check_starts_clear(die, walls, initial, grid, corner_radius, checker):
+    """Refuse any start (the initial state or any grid point) with a corner inside a surface.
+    A rounded die (``corner_radius`` r > 0, m) reaches as far as the kernel's arcs, less far
+    than its sharp corners."""
     starts = _start_values(initial, grid)
     phi_key, phi = starts["phi0"]
 
     def reach(direction, angle=phi):
-        return geometry.support(die.sides, die.circumradius, angle, direction)
+        return geometry.support(die.sides, die.circumradius, angle, direction, corner_radius)
 
     surfaces = [("y0", "the table", starts["y0"][1], reach(geometry.DOWN))]
     if walls.separation is not None:
@@ -594,7 +596,7 @@ def _build(raw, checker):
             if allowed is not None:
                 raise checker.error(key.dotted, f"{effect_registry.get_key(partial, key.dotted)!r} is outside the {allowed}")
     grid = _grid(checker.table(raw, ("grid",), required=False), checker)
-    _check_starts_clear(die, walls, sections["initial"], grid, checker)
+    _check_starts_clear(die, walls, sections["initial"], grid, sections["effects"].corner_radius, checker)
     return Config(**sections, grid=grid, source=checker.source)
 
 
@@ -632,7 +634,7 @@ def check_initial_clear(cfg, overrides=()):
     start from it alone (`roll`): with a [grid], loading checks the swept starts, and a value
     the grid replaces may be anything (fig08 with initial.y0 = -1 rolled "side 3 after 0
     impacts", exit 0)."""
-    _check_starts_clear(cfg.die, cfg.walls, cfg.initial, None, _Checker(cfg.source, bool(overrides)))
+    _check_starts_clear(cfg.die, cfg.walls, cfg.initial, None, cfg.effects.corner_radius, _Checker(cfg.source, bool(overrides)))
 
 
 def load_config(path, overrides=()):

@@ -5,11 +5,16 @@ Conventions, shared with the kernel and the plots:
 * corner ``k`` (``k = 0 .. n-1``) sits at angle ``phi + 2 pi k / n`` from the centre, at the
   circumradius ``R``;
 * side ``k`` joins corners ``k`` and ``k + 1`` (mod n), so side 0 lies between the corners at
-  ``phi`` and ``phi + 2 pi / n`` and the sides are numbered counterclockwise (paper, Fig. 7).
+  ``phi`` and ``phi + 2 pi / n`` and the sides are numbered counterclockwise (paper, Fig. 7);
+* with rounded corners (``[effects] corner_radius`` r > 0) the die keeps its apothem and is a
+  core polygon of circumradius :func:`core_circumradius` grown by a disk of radius r: corner k
+  is an arc of radius r centred at the core's corner k (docs/physics.md, "Rounded corners").
 
 All lengths are in metres, angles in radians. Functions taking ``y`` or ``phi`` accept numpy
 arrays and broadcast them.
 """
+
+import math
 
 import numpy as np
 
@@ -20,6 +25,8 @@ __all__ = [
     "moment_of_inertia",
     "corner_angles",
     "corners",
+    "core_circumradius",
+    "outline",
     "support",
     "lowest_corner_height",
     "side_below",
@@ -145,11 +152,76 @@ def corners(sides, circumradius, x, y, phi):
     return np.column_stack((x + circumradius * np.cos(angles), y + circumradius * np.sin(angles)))
 
 
-def support(sides, circumradius, phi, direction):
+def core_circumradius(sides, circumradius, corner_radius):
+    """Circumradius Rc = (a - r) / cos(pi/n) of the core polygon of a die whose corners are
+    rounded to r and whose apothem a = R cos(pi/n) is kept: the arc centres' distance from
+    the geometric centre, m (the kernel's corner block, physics/params.py, holds them).
+
+    Parameters
+    ----------
+    sides, circumradius : int, float
+        The sharp die: n >= 3 sides, circumradius R in m.
+    corner_radius : float
+        r, m, in [0, a).
+
+    Returns
+    -------
+    core : float
+        Rc, m.
+    """
+    # math, not numpy: pack_params calls this, and the kernel's numbers must not move
+    c = math.cos(math.pi / sides)
+    return (circumradius * c - corner_radius) / c
+
+
+def _arc_centre_radius(sides, circumradius, corner_radius):
+    """The core's circumradius, or R itself (untouched, bit for bit) for a sharp die."""
+    return circumradius if corner_radius == 0.0 else core_circumradius(sides, circumradius, corner_radius)
+
+
+def outline(sides, circumradius, x, y, phi, corner_radius=0.0, max_step=np.pi / 36):
+    """Points along the outline of a die centred at (x, y), for drawing it.
+
+    Each corner is an arc of radius ``corner_radius`` about the core's corner, from the
+    normal of the side before it to that of the side after it (angles phi + 2 pi k/n -+ pi/n);
+    straight sides join consecutive arcs. A sharp die (r = 0) is its corners.
+
+    Parameters
+    ----------
+    sides, circumradius : int, float
+        The die: n >= 3 sides, circumradius R in m.
+    x, y : float
+        Position of the geometric centre, m.
+    phi : float
+        Angle of corner 0, rad.
+    corner_radius : float
+        r, m, in [0, R cos(pi/n)).
+    max_step : float
+        Largest angle between neighbouring points of an arc, rad.
+
+    Returns
+    -------
+    arcs : ndarray, shape (n, m, 2)
+        ``arcs[k]`` holds (x, y) of m points along corner k's arc, counterclockwise (m = 1,
+        the corner itself, when r = 0); side k runs from ``arcs[k, -1]`` to ``arcs[k + 1, 0]``.
+        ``arcs.reshape(-1, 2)`` is the closed outline.
+    """
+    if corner_radius == 0.0:
+        return corners(sides, circumradius, x, y, phi)[:, None, :]
+    half = np.pi / sides
+    count = max(2, math.ceil(2.0 * half / max_step) + 1)
+    centres = corners(sides, core_circumradius(sides, circumradius, corner_radius), x, y, phi)
+    angles = corner_angles(sides, phi)[:, None] + np.linspace(-half, half, count)
+    return np.stack((centres[:, :1] + corner_radius * np.cos(angles), centres[:, 1:] + corner_radius * np.sin(angles)), axis=-1)
+
+
+def support(sides, circumradius, phi, direction, corner_radius=0.0):
     """How far the die reaches from its centre along a direction (its support function).
 
     This is the largest projection of a corner offset onto the unit vector at angle
     ``direction``: ``R cos(d)`` with ``d`` the angle from that direction to the nearest corner.
+    With rounded corners it is the arc centres' reach plus r, ``Rc cos(d) + r`` (Rc:
+    :func:`core_circumradius`), where the kernel finds a surface touched.
     The die's lowest point is ``y - support(..., -pi/2)``, its right-most ``x + support(..., 0)``.
 
     Parameters
@@ -162,6 +234,8 @@ def support(sides, circumradius, phi, direction):
         Orientation (angle of corner 0), rad.
     direction : float or array_like
         Angle of the direction, rad (0: +x, pi/2: +y).
+    corner_radius : float
+        r, m (0: sharp corners).
 
     Returns
     -------
@@ -171,7 +245,8 @@ def support(sides, circumradius, phi, direction):
     spacing = _central_angle(sides)
     offset = np.mod(np.asarray(direction) - np.asarray(phi), spacing)
     nearest = np.minimum(offset, spacing - offset)
-    return circumradius * np.cos(nearest)
+    # + 0.0 leaves a sharp die's reach as it was, bit for bit
+    return _arc_centre_radius(sides, circumradius, corner_radius) * np.cos(nearest) + corner_radius
 
 
 def lowest_corner_height(sides, circumradius, y, phi):
@@ -223,7 +298,8 @@ def clear_of_surfaces(sides, circumradius, separation, states):
     """bool (N,): starts (rows x, y, phi, ...) with no corner inside the table, nor inside a
     wall when ``separation`` (m) is not None: the die's reach along each surface's normal
     (:func:`support`) fits in the room its centre leaves. The config checks its own starts
-    the same way (with a round-off tolerance, to name the value that fails)."""
+    the same way (with a round-off tolerance, to name the value that fails), for a rounded
+    die at its rounded reach; this uses the sharp corners, which enclose a rounded die."""
     states = np.asarray(states, dtype=float)
     x, y, phi = states[:, 0], states[:, 1], states[:, 2]
     clear = y >= support(sides, circumradius, phi, DOWN)

@@ -291,6 +291,55 @@ def test_initial_start_is_checked_for_roll_when_a_grid_sweeps_it():
     assert "into the table" in str(caught.value) and "bad.toml with --set" in str(caught.value)
 
 
+# a square with corners rounded to r keeps the apothem a: its arc centres sit sqrt(2) (a - r)
+# from its centre (docs/physics.md, "Rounded corners"), so on a corner (phi0 = 0, corner 3
+# straight down; corner 0 points at the right wall) it reaches sqrt(2) (a - r) + r < R
+ROUND = 0.002  # m
+ROUND_REACH = math.sqrt(2.0) * (R * math.cos(math.pi / 4) - ROUND) + ROUND
+
+
+def test_rounded_die_may_start_where_its_sharp_corner_would_overlap():
+    y0 = ROUND_REACH + 1e-9
+    assert y0 < R - 1e-4  # the sharp die would be 0.8 mm into the table
+    cfg = parse_config(f"[effects]\ncorner_radius = {ROUND}\n[initial]\ny0 = {y0!r}\nphi0 = 0.0")
+    assert cfg.initial.y0 == y0
+    check_initial_clear(cfg)
+    x0 = 0.1 - ROUND_REACH - 1e-9  # and as close to the right wall
+    walls = f"[walls]\nseparation = 0.2\n[effects]\ncorner_radius = {ROUND}\n[initial]\nphi0 = 0.0\n"
+    assert parse_config(walls + f"x0 = {x0!r}").initial.x0 == x0
+    assert parse_config(walls + f"x0 = {-x0!r}").initial.x0 == -x0
+
+
+@pytest.mark.parametrize(
+    ("start", "key", "surface", "allowed"),
+    [
+        (f"y0 = {ROUND_REACH - 1e-6!r}", "initial.y0", "the table", f"y0 >= {ROUND_REACH:g} m"),
+        (f"x0 = {0.1 - ROUND_REACH + 1e-6!r}", "initial.x0", "the right wall", f"{ROUND_REACH - 0.1:g} <= x0 <= {0.1 - ROUND_REACH:g} m"),
+    ],
+)
+def test_rounded_die_starting_into_a_surface_is_refused_with_its_own_range(start, key, surface, allowed):
+    text = f"[walls]\nseparation = 0.2\n[effects]\ncorner_radius = {ROUND}\n[initial]\nphi0 = 0.0\n{start}"
+    error = config_error(text)
+    assert error.key == key
+    assert f"1e-06 m into {surface} (allowed range at this phi0: {allowed})" in error.message
+
+
+def test_roll_checks_a_rounded_die_at_its_rounded_reach():
+    # a [grid] sweeping y0 leaves initial.y0 to `roll`'s own check
+    text = f"[effects]\ncorner_radius = {ROUND}\n[initial]\nphi0 = 0.0\n" + GRID
+    check_initial_clear(parse_config(text, overrides=[f"initial.y0={ROUND_REACH + 1e-9!r}"]))
+    with pytest.raises(ConfigError) as caught:
+        check_initial_clear(parse_config(text, overrides=[f"initial.y0={ROUND_REACH - 1e-6!r}"]))
+    assert caught.value.key == "initial.y0" and f"y0 >= {ROUND_REACH:g} m" in caught.value.message
+
+
+def test_sharp_die_is_checked_at_its_corners_as_before():
+    y0 = ROUND_REACH + 1e-9  # clear for the rounded die, 0.8 mm into the table for the sharp one
+    error = config_error(f"[effects]\ncorner_radius = 0.0\n[initial]\ny0 = {y0!r}\nphi0 = 0.0")
+    assert error.key == "initial.y0"
+    assert f"{R - y0:g} m into the table (allowed range at this phi0: y0 >= {R:g} m)" in error.message
+
+
 # ---- --set overrides -----------------------------------------------------------------------
 
 

@@ -134,3 +134,77 @@ def test_side_below_wraps_to_side_zero_at_the_last_corner():
     phi = np.nextafter(-0.5 * np.pi, 0.0)
     assert 0 <= geometry.side_below(4, phi) < 4
     assert isinstance(geometry.side_below(4, 0.3), int)
+
+
+# ---- rounded corners: outline and reach --------------------------------------------------
+
+
+def _core(sides, r):
+    """Arc centres' distance from the centre, by hand: the apothem less r over cos(pi/n)."""
+    return (R * math.cos(math.pi / sides) - r) / math.cos(math.pi / sides)
+
+
+@pytest.mark.parametrize("sides", [3, 4, 7])
+def test_outline_of_a_sharp_die_is_its_corners(sides):
+    arcs = geometry.outline(sides, R, 0.3, -0.2, 0.4)
+    assert arcs.shape == (sides, 1, 2)
+    np.testing.assert_array_equal(arcs[:, 0], geometry.corners(sides, R, 0.3, -0.2, 0.4))
+
+
+@pytest.mark.parametrize(("sides", "share"), [(3, 0.5), (4, 0.2), (4, 0.99), (7, 0.3)])
+def test_rounded_outline_lies_in_the_circumcircle_on_arcs_and_keeps_the_apothem(sides, share):
+    x, y, phi = 0.3, -0.2, 0.4
+    apothem = R * math.cos(math.pi / sides)
+    r = share * apothem
+    arcs = geometry.outline(sides, R, x, y, phi, r)
+    assert np.hypot(arcs[..., 0] - x, arcs[..., 1] - y).max() <= R * (1 + 1e-15)
+    # every arc point is r from its centre, the core corner at phi + 2 pi k / n
+    angles = phi + 2 * math.pi * np.arange(sides) / sides
+    centres = np.column_stack((x + _core(sides, r) * np.cos(angles), y + _core(sides, r) * np.sin(angles)))
+    np.testing.assert_allclose(np.linalg.norm(arcs - centres[:, None], axis=-1), r, rtol=1e-12)
+    # each side's straight part lies at the apothem, along the side's outward normal
+    for k in range(sides):
+        normal = np.array([math.cos(angles[k] + math.pi / sides), math.sin(angles[k] + math.pi / sides)])
+        ends = np.array([arcs[k, -1], arcs[(k + 1) % sides, 0]]) - [x, y]
+        np.testing.assert_allclose(ends @ normal, apothem, rtol=1e-12)
+
+
+@pytest.mark.parametrize(("sides", "share"), [(3, 0.5), (4, 0.2), (7, 0.3)])
+def test_rounded_outline_reaches_as_far_as_the_support_function(sides, share):
+    r = share * R * math.cos(math.pi / sides)
+    rng = np.random.default_rng(sides)
+    step = math.pi / 36  # outline's default largest angle between arc points
+    for phi, direction in rng.uniform(-7.0, 7.0, (50, 2)):
+        arcs = geometry.outline(sides, R, 0.0, 0.0, phi, r)
+        extent = (arcs.reshape(-1, 2) @ [math.cos(direction), math.sin(direction)]).max()
+        reach = geometry.support(sides, R, phi, direction, r)
+        # the sampled arc falls short of the true one by at most its chords' sagitta
+        assert reach - r * (1 - math.cos(step / 2)) - 1e-16 <= extent <= reach + 1e-16
+
+
+def test_rounded_support_by_hand_and_against_the_kernels_arc_centres():
+    from dice_sweep.config import parse_config
+    from dice_sweep.physics.params import CORNER_STRIDE, FP_CORNERS, FP_RHO_MAX, pack_params
+
+    r = 0.002
+    # a square on a corner (phi = 0: corner 3 straight down) reaches its core corner plus r;
+    # lying flat (phi = pi/4) it reaches the apothem, as the sharp die does
+    assert geometry.support(4, R, 0.0, geometry.DOWN, r) == pytest.approx(_core(4, r) + r, rel=1e-14)
+    assert geometry.support(4, R, math.pi / 4, geometry.DOWN, r) == pytest.approx(R / math.sqrt(2), rel=1e-14)
+    for sides in (3, 4, 7):
+        fpar, _ = pack_params(parse_config(f"[die]\nsides = {sides}\n[effects]\ncorner_radius = {r}"))
+        block = fpar[FP_CORNERS:].reshape(sides, CORNER_STRIDE)
+        centres = block[:, :1] * block[:, 1:]  # arc centres from the (fair die's) centre, body frame
+        assert fpar[FP_RHO_MAX] == pytest.approx(geometry.support(sides, R, 0.0, 0.0, r), rel=1e-14)
+        for phi, direction in np.random.default_rng(sides).uniform(-7.0, 7.0, (50, 2)):
+            unit = [math.cos(direction - phi), math.sin(direction - phi)]  # in the body frame
+            assert geometry.support(sides, R, phi, direction, r) == pytest.approx((centres @ unit).max() + r, rel=1e-14)
+
+
+def test_support_at_zero_radius_is_the_sharp_one_bit_for_bit():
+    phi = np.random.default_rng(3).uniform(-7.0, 7.0, 200)
+    for sides in (3, 4, 9):
+        spacing = 2 * np.pi / sides
+        offset = np.mod(0.3 - phi, spacing)
+        sharp = R * np.cos(np.minimum(offset, spacing - offset))  # R cos(angle to the nearest corner)
+        np.testing.assert_array_equal(geometry.support(sides, R, phi, 0.3, 0.0), sharp)

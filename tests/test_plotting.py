@@ -271,6 +271,33 @@ def test_plot_roll_draws_die_with_side_zero_in_red(tmp_path):
     assert red.sum() > 20
 
 
+@pytest.mark.parametrize("radius", [0.0, 0.004])
+def test_roll_draws_the_rounded_outline_and_the_sharp_one_unchanged(tmp_path, radius):
+    from matplotlib.figure import Figure
+
+    from dice_sweep.geometry import corners
+    from dice_sweep.plotting.roll import _add_die
+
+    cfg = config.parse_config(f"[effects]\ncorner_radius = {radius}")
+    state = (0.01, 0.05, 0.3)
+    shape, side0 = _add_die(Figure().add_subplot(), cfg, state)
+    xy = shape.get_xy()[:-1]  # the patch repeats its first point to close the path
+    side = np.column_stack(side0.get_data())
+    R = cfg.die.circumradius
+    if radius == 0.0:
+        np.testing.assert_array_equal(xy, corners(4, R, *state))
+        np.testing.assert_array_equal(side, xy[:2])
+    else:
+        # arcs about the core's corners, sqrt(2) (a - r) from the centre: side 0's straight part
+        # is the core's side, 2 (a - r) long, at the apothem a = R / sqrt(2)
+        core = np.sqrt(2.0) * (R / np.sqrt(2.0) - radius)
+        assert len(xy) > 4 * 2 and np.hypot(xy[:, 0] - 0.01, xy[:, 1] - 0.05).max() <= R
+        assert np.linalg.norm(side[1] - side[0]) == pytest.approx(np.sqrt(2.0) * core, rel=1e-12)
+        normal = [np.cos(0.3 + np.pi / 4), np.sin(0.3 + np.pi / 4)]
+        np.testing.assert_allclose((side - [0.01, 0.05]) @ normal, R / np.sqrt(2.0), rtol=1e-12)
+    plotting.plot_roll(cfg, fake_report(), tmp_path / "roll.png", frames=3, dpi=40, path_sampler=falling_path)
+
+
 @pytest.mark.parametrize(
     "t_end, fps, max_frames, frames",
     [(0.5, 20, 300, 11), (0.51, 20, 300, 12), (2.0, 30, 7, 7)],

@@ -22,7 +22,7 @@ import numpy as np
 
 from dice_sweep import effects as effect_registry
 from dice_sweep.config import MAX_EVENTS
-from dice_sweep.geometry import inertia_ratio
+from dice_sweep.geometry import core_circumradius, inertia_ratio
 from dice_sweep.physics.layout import METHODS, MODELS
 
 # fpar indices (SI units): the base slots; every effect's slots follow, from the registry
@@ -142,14 +142,6 @@ def pack_params(cfg):
     ipar[IP_METHOD] = METHODS[cfg.integrator.method]
     ipar[IP_MAX_EVENTS] = event_budget(cfg.integrator)
     return fpar, ipar
-
-
-def core_circumradius(n, radius, corner_radius):
-    """Circumradius (m) of the core polygon of a die with corners rounded to ``corner_radius``
-    that keeps the apothem R cos(pi/n): (a - r) / cos(pi/n), the arc centres' distance from the
-    geometric centre."""
-    c = math.cos(math.pi / n)
-    return (radius * c - corner_radius) / c
 
 
 def event_budget(integrator):

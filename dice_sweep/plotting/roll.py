@@ -11,7 +11,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
-from dice_sweep.geometry import corners
+from dice_sweep.geometry import outline
 from dice_sweep.plotting.common import (
     ANIMATION_DPI,
     ANIMATION_FIGSIZE,
@@ -22,9 +22,11 @@ from dice_sweep.plotting.common import (
 )
 
 
-def _die_corners(cfg, state):
-    """(n, 2) corners of the die in a state row (x, y, phi, ...)."""
-    return corners(cfg.die.sides, cfg.die.circumradius, state[0], state[1], state[2])
+def _die_outline(cfg, state):
+    """Outline of the die in a state row (x, y, phi, ...): ``(points, side 0)``, each (m, 2),
+    the closed outline (arcs at rounded corners) and side 0's straight part."""
+    arcs = outline(cfg.die.sides, cfg.die.circumradius, state[0], state[1], state[2], cfg.effects.corner_radius)
+    return arcs.reshape(-1, 2), np.array([arcs[0, -1], arcs[1, 0]])
 
 
 def _roll_outcome_text(report):
@@ -59,17 +61,17 @@ def _draw_roll_scene(ax, cfg, path, report):
 
 def _add_die(ax, cfg, state, alpha=1.0):
     """Draw the die outline with side 0 in the colour of side 0; return (outline, side 0)."""
-    xy = _die_corners(cfg, state)
-    outline = ax.add_patch(Polygon(xy, closed=True, fill=False, edgecolor="black", linewidth=1.0, alpha=alpha))
-    (side0,) = ax.plot(xy[:2, 0], xy[:2, 1], color=outcome_colors(cfg.die.sides)[0], linewidth=2.0, alpha=alpha)
-    return outline, side0
+    xy, side = _die_outline(cfg, state)
+    shape = ax.add_patch(Polygon(xy, closed=True, fill=False, edgecolor="black", linewidth=1.0, alpha=alpha))
+    (side0,) = ax.plot(side[:, 0], side[:, 1], color=outcome_colors(cfg.die.sides)[0], linewidth=2.0, alpha=alpha)
+    return shape, side0
 
 
 def _move_die(artists, cfg, state):
-    outline, side0 = artists
-    xy = _die_corners(cfg, state)
-    outline.set_xy(xy)
-    side0.set_data(xy[:2, 0], xy[:2, 1])
+    shape, side0 = artists
+    xy, side = _die_outline(cfg, state)
+    shape.set_xy(xy)
+    side0.set_data(side[:, 0], side[:, 1])
 
 
 def plot_roll(cfg, report, png_path, path_sampler, *, frames=12, dpi=150):
