@@ -125,6 +125,7 @@ RULE_QUANTITIES = {
     "sliding_error": "error of the rigid law with the sliding friction rule (the cap opposing the incoming slip)",
     "exact_error": "error of the exact Coulomb impact (Routh), Newton restitution",
     "exact_energetic_error": "error of the exact Coulomb impact (Routh), energetic restitution",
+    "exact_two_error": "error of the exact Coulomb impact at both corners of the lowest side (two_contact_after: equal contact springs)",
 }
 RULES = {"sliding_error": ("sliding", "newton"), "exact_error": ("exact", "newton"), "exact_energetic_error": ("exact", "energetic")}
 # also in every row; a table column only where it differs from paper_error (scripts/impact_bound.py)
@@ -637,6 +638,8 @@ def first_impact_bounds(trackset, cfg, *, rigid, paper, clean_only=True, inertia
                             model="rigid", inertia=inertia, **rigid)
             for name, (rule, law) in RULES.items()
         }
+        exact_cfg = dataclasses.replace(cfg, contact=dataclasses.replace(cfg.contact, friction_rule="exact", restitution="energetic"))
+        exact_two_after = two_contact_after(state, exact_cfg, model="rigid", inertia=inertia, **rigid)
         paper_counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
         paper_two_after = two_contact_after(state, cfg, model="paper", friction=math.inf, inertia=inertia, counts=paper_counts, **paper)
         nan = np.full(3, np.nan)
@@ -659,6 +662,7 @@ def first_impact_bounds(trackset, cfg, *, rigid, paper, clean_only=True, inertia
             "rigid_side_error": velocity_error(rigid_side_after, after, inertia),
             "paper_error": velocity_error(paper_after, after, inertia),
             **{name: velocity_error(law, after, inertia) for name, law in by_rule.items()},
+            "exact_two_error": math.nan if exact_two_after is None else velocity_error(exact_two_after, after, inertia),
             "paper_two_error": math.nan if paper_two_after is None else velocity_error(paper_two_after, after, inertia),
             "change": velocity_error(before, after, inertia),
             "noise": noise,
@@ -744,6 +748,7 @@ HEADERS = {
     "sliding_error": "rigid law, sliding rule",
     "exact_error": "exact Coulomb, Newton",
     "exact_energetic_error": "exact Coulomb, energetic",
+    "exact_two_error": "exact Coulomb, both corners of the side",
 }
 
 
