@@ -6,7 +6,7 @@ config accepts), which parameters a fit frees (bounds, the null value at which t
 does nothing, start values, a typical size), how it reaches the kernel (through the config's
 keys; measurement effects act on the comparison with the tracks instead) and which residual
 signature points to it. Config validation (``[effects]`` and ``[tracking]`` keys), the fit,
-the diagnosis, the CLI help and the docs read from here; docs/effects.md walks through adding
+the diagnosis, the CLI help and the docs read from here; docs/dev/adding.md walks through adding
 one.
 
 Kinds:

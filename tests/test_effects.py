@@ -195,13 +195,13 @@ def test_every_signature_is_measured_by_the_diagnosis():
 
 
 def test_the_worked_example_is_the_registry_entry():
-    """docs/effects.md's worked example (step 1) builds exactly the registry's entry: the code a
+    """docs/dev/adding.md's worked example (step 1) builds exactly the registry's entry: the code a
     contributor copies is the code that runs."""
     import re
     import textwrap
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parent.parent / "docs" / "effects.md").read_text()
+    text = (Path(__file__).resolve().parent.parent / "docs" / "dev" / "adding.md").read_text()
     block = re.search(r"1\. \*\*The entry\*\*.*?```python\n(.*?)```", text, re.S).group(1)
     example = eval(textwrap.dedent(block), vars(effects))  # the names the registry module has
     entry = effects.effect(example.name)
@@ -218,11 +218,15 @@ def test_the_worked_example_is_the_registry_entry():
 
 
 def test_the_worked_example_runs(tmp_path):
-    """The example's roll command runs, and the effect changes the roll it prints."""
+    """The example's roll command (docs/dev/adding.md) runs, and the effect changes the roll it prints."""
+    from pathlib import Path
+
     from click.testing import CliRunner
 
     from dice_sweep.cli import main
 
+    text = (Path(__file__).resolve().parent.parent / "docs" / "dev" / "adding.md").read_text()
+    assert "`dice-sweep roll configs/table1.toml --set effects.speed_restitution=0.5`" in text
     runner = CliRunner()
     args = ["roll", "configs/table1.toml", "--json"]
     plain = runner.invoke(main, args)
