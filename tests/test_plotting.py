@@ -38,7 +38,7 @@ def falling_path(cfg, report, times):
 
 
 def grid_centres(lo, hi, num):
-    """Cell centres of the sweep grid convention (docs/architecture.md)."""
+    """Cell centres of the sweep grid convention (docs/dev/architecture.md)."""
     return lo + (np.arange(num) + 0.5) * (hi - lo) / num
 
 

@@ -602,7 +602,7 @@ def _roll_into(fpar, ipar, state0, rec, counts, s, after, pivot_out, hit):
 @numba.njit(cache=True)
 def roll_batch(fpar, ipar, states, out_outcome, out_status, out_counts, out_t):
     """Roll every row of ``states``; results go into the preallocated outputs (see
-    docs/architecture.md). A row's result depends on that row only."""
+    docs/dev/architecture.md). A row's result depends on that row only."""
     rec = np.empty((0, REC_WIDTH))
     counts = np.zeros(out_counts.shape[1], dtype=np.int32)
     s, after, pivot_out, hit = np.empty(6), np.empty(6), np.empty(5), np.empty(2, dtype=np.int64)
