@@ -532,8 +532,8 @@ NOTES = """
 5. The roll loop (``_roll_event``) and its set-up (``_roll_into``) are inlined into
    ``roll_one``, ``roll_batch`` and ``sample_batch`` (numba's ``inline="always"``): as a call
    per roll the loop took eight array arguments, a reference count up and down for each.
-   Fixed overhead on fig08's grid: 194 ns per roll in the previous docs/profile.md (commit
-   a1087f1), the value in the table above now. Bit for bit: no outcome, status, impact count
+   Fixed overhead on fig08's grid: 194 ns per roll in this page's previous version
+   (commit a1087f1, when it was in docs/), the value in the table above now. Bit for bit: no outcome, status, impact count
    or t_decided changed on fig08 and fig11 at 512 x 512, fig09 and fig13 at 256 x 256 or
    fig10 at 128 x 128 (`dice-sweep sweep` on this commit and on an unpacked archive of the
    previous one) or in the golden files. A cold start compiles three copies of the loop
