@@ -38,7 +38,16 @@ def test_quadratic_drag_fall_matches_the_closed_form():
     assert rec[1, REC_T] > math.sqrt(2 * (y0 - R) / G)  # slower than free fall
 
 
-def test_tiny_drag_changes_no_outcome(rng):
+def test_tiny_drag_delays_a_drop_by_its_first_order_amount_and_changes_no_outcome(rng):
+    """A drag c small enough to change no outcome still acts: a straight drop from y0 reaches the
+    table later by c g t0^3 / 12 (first order in c of y = y0 - g t^2/2 + c g^2 t^4/12), which a
+    kernel ignoring the drag slot fails; and 200 random rolls keep their outcomes."""
+    c, y0 = 1e-6, 0.3
+    start = [0.0, y0, -math.pi / 2, 0.0, 0.0, 0.0]
+    plain_time = run_one(make_params(), start)[4][1, REC_T]
+    drag_time = run_one(make_params(air_drag=c), start)[4][1, REC_T]
+    t0 = math.sqrt(2 * (y0 - R) / G)
+    assert drag_time - plain_time == pytest.approx(c * G * t0**3 / 12, rel=1e-3)
     states = random_states(rng, 200, y_range=(0.03, 0.1), omega_max=20.0)
     plain, _, _, _ = run_batch(make_params(), states)
     tiny, _, _, _ = run_batch(make_params(air_drag=1e-12), states)
