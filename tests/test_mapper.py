@@ -11,31 +11,9 @@ from dice_sweep import mapper as mapper_module
 from dice_sweep.config import parse_config
 from dice_sweep.mapper import Mapper, Plane, Rolls, initial_states, roll_states
 from dice_sweep.physics.layout import COUNT_COLUMNS, STATE_COLUMNS
-from dice_sweep.storage import COUNT_MAX, read_sweep
-from tests.helpers import small_sweep
-
-# 9 rows x 11 columns of fig08's plane (omega0 against y0), a start with some spin and drift
-CONFIG_TEXT = """
-[initial]
-phi0 = 0.3
-vx0 = 0.1
-[grid]
-x = { param = "omega0", min = 0.0, max = 40.0, num = 11 }
-y = { param = "y0", min = 0.03, max = 0.15, num = 9 }
-"""
-
-
-@pytest.fixture(scope="module")
-def cfg():
-    return parse_config(CONFIG_TEXT, "test.toml")
-
-
-@pytest.fixture(scope="module")
-def grid_file(cfg, tmp_path_factory):
-    """The full grid of ``cfg`` as ``dice-sweep sweep`` writes it, in tiles of 4 x 4."""
-    path = tmp_path_factory.mktemp("grid") / "grid.h5"
-    small_sweep(cfg, path, tile_shape=(4, 4))
-    return read_sweep(path)
+from dice_sweep.storage import COUNT_MAX
+from tests.test_sweep import CONFIG_TEXT
+from tests.test_sweep import cfg, reference  # noqa: F401  (the 7 x 10 grid and its sweep file, in tiles of 3 x 4)
 
 
 @pytest.fixture(scope="module")
@@ -53,16 +31,16 @@ def _bits(rolls):
     return [np.asarray(values).tobytes() for values in rolls]
 
 
-def test_arbitrary_starts_get_the_grid_pixels_of_the_same_starts(cfg, grid_file, starts):
+def test_arbitrary_starts_get_the_grid_pixels_of_the_same_starts(cfg, reference, starts):
     states, rows, cols = starts
     rolls = Mapper.from_config(cfg).roll(states)
     assert len(set(rolls.outcome.tolist())) > 1  # the grid crosses a boundary: a real check
-    assert np.array_equal(rolls.outcome, grid_file.outcome[rows, cols])
-    assert np.array_equal(rolls.status, grid_file.status[rows, cols])
+    assert np.array_equal(rolls.outcome, reference.outcome[rows, cols])
+    assert np.array_equal(rolls.status, reference.status[rows, cols])
     # the file keeps the decision time as float32 and the counters clipped to uint16
-    assert rolls.t_decided.astype(np.float32).tobytes() == grid_file.t_decided[rows, cols].tobytes()
+    assert rolls.t_decided.astype(np.float32).tobytes() == reference.t_decided[rows, cols].tobytes()
     for k, name in enumerate(COUNT_COLUMNS):
-        assert np.array_equal(np.minimum(rolls.counts[:, k], COUNT_MAX), grid_file.maps[name][rows, cols])
+        assert np.array_equal(np.minimum(rolls.counts[:, k], COUNT_MAX), reference.maps[name][rows, cols])
 
 
 def test_pool_and_local_give_identical_arrays(cfg, starts, monkeypatch):

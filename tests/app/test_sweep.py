@@ -8,17 +8,13 @@ from dice_sweep.config import parse_config
 from dice_sweep.errors import ConfigError, DiceSweepError
 from dice_sweep.storage import read_sweep
 from tests.helpers import assert_same_maps
-
-CONFIG_TEXT = """
-[grid]
-x = { param = "omega0", min = 0.0, max = 40.0, num = 8 }
-y = { param = "y0", min = 0.03, max = 0.15, num = 8 }
-"""
+from tests.test_sweep import CONFIG_TEXT
 
 
 @pytest.fixture(scope="module")
 def cfg():
-    return parse_config(CONFIG_TEXT, "test.toml")
+    """test_sweep's grid at 8 x 8 cells: refinement needs an even count."""
+    return parse_config(CONFIG_TEXT, "test.toml", overrides=["grid.x.num=8", "grid.y.num=8"])
 
 
 def quiet(cfg, path, **options):
