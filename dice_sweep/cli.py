@@ -211,9 +211,12 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     \b
     Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
     """
+    from pathlib import Path
+
     from dice_sweep.outputs import SWEEP_FILE
 
-    _check_outputs(("--output", out_path, SWEEP_FILE), ("--png", png_path, IMAGE))
+    # -o is required: an empty name is checked too (as ".", which check_outputs would skip as "")
+    _check_outputs(("--output", Path(out_path), SWEEP_FILE), ("--png", png_path, IMAGE))
     _fast_kernel_start()
     from dice_sweep.app.sweep import sweep as sweep_command
 

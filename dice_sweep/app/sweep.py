@@ -11,6 +11,7 @@ layers below take them as checked.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import numpy as np
 
@@ -92,5 +93,5 @@ def merge(part_paths: Sequence, out_path):
     (:func:`dice_sweep.sweep.merge_parts`). Returns its summary."""
     from dice_sweep.sweep import merge_parts
 
-    check_outputs(("--output", out_path, SWEEP_FILE))
+    check_outputs(("--output", Path(out_path), SWEEP_FILE))  # a Path: an empty name is checked too, as "."
     return merge_parts(part_paths, out_path)

@@ -74,3 +74,5 @@ def test_merge_refuses_an_output_that_is_not_a_sweep_file(cfg, tmp_path):
     with pytest.raises(DiceSweepError, match="--output: .*merged.png"):
         merge([tmp_path / "part.h5"], tmp_path / "merged.png")
     assert not (tmp_path / "merged.png").exists()
+    with pytest.raises(DiceSweepError, match="--output: .: wrong file extension"):
+        merge([tmp_path / "part.h5"], "")
