@@ -1,7 +1,8 @@
 """The ``dice-sweep`` command line: roll, sweep, merge, plot.
 
-The only module that imports click. Each command is a few lines over one library call; the
-library modules are imported inside the commands so that ``dice-sweep --help`` starts fast.
+The only module that imports click. Each command is a few lines over one call into the
+application layer (:mod:`dice_sweep.app`, one function per command); the modules are imported
+inside the commands so that ``dice-sweep --help`` starts fast.
 A user error (any :class:`~dice_sweep.errors.DiceSweepError`, or a file that cannot be read or
 written) is printed as one line ``error: ...`` on stderr with exit code 2, never a traceback.
 Every path a command writes is checked before its work (:func:`dice_sweep.outputs.check_outputs`).
@@ -210,9 +211,12 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     \b
     Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
     """
+    from pathlib import Path
+
     from dice_sweep.outputs import SWEEP_FILE
 
-    _check_outputs(("--output", out_path, SWEEP_FILE), ("--png", png_path, IMAGE))
+    # -o is required: an empty name is checked too (as ".", which check_outputs would skip as "")
+    _check_outputs(("--output", Path(out_path), SWEEP_FILE), ("--png", png_path, IMAGE))
     _fast_kernel_start()
     from dice_sweep.app.sweep import sweep as sweep_command
 
@@ -240,9 +244,9 @@ def merge(parts, out_path):
     \b
     Example: dice-sweep merge part0.h5 part1.h5 -o out/fig08.h5
     """
-    from dice_sweep.sweep import merge_parts
+    from dice_sweep.app.sweep import merge
 
-    click.echo(merge_parts(parts, out_path).describe())
+    click.echo(merge(parts, out_path).describe())
 
 
 @main.command()
@@ -519,6 +523,6 @@ def view(h5_path, host, port, no_open, workers):
     \b
     Example: dice-sweep view out/fig09.h5 --port 8000 --no-open
     """
-    from dice_sweep.view.server import serve
+    from dice_sweep.app.view import view as view_command
 
-    serve(h5_path, host=host, port=port, open_browser=not no_open, workers=workers, echo=click.echo, warn=_warn)
+    view_command(h5_path, host=host, port=port, open_browser=not no_open, workers=workers, echo=click.echo, warn=_warn)

@@ -1,8 +1,8 @@
 """Tiles of a sweep as tasks on a dask.distributed cluster (``sweep --executor dask``).
 
 The only module that imports dask. The client (the ``dice-sweep sweep`` process) sends the
-:class:`~dice_sweep.sweep.SweepJob` to every worker once, submits one task per tile still to
-do, and hands each tile's maps back to :func:`~dice_sweep.sweep.run_sweep` as it completes,
+sweep's :class:`~dice_sweep.executor.TileTask` to every worker once, submits one task per tile
+still to do, and hands each tile's result back to :func:`~dice_sweep.sweep.run_sweep` as it completes,
 which writes it to the HDF5 file at once; resume, shards and Ctrl-C work as for local workers.
 A roll depends only on its own initial state and every worker runs the same kernel (checked:
 same dice_sweep version and physics sources), so the maps equal a local run's bitwise.
@@ -61,7 +61,7 @@ def _mismatch_message(where: str, address: str, theirs, mine) -> str:
     )
 
 
-def _compute_tile(job, index: int, fingerprint: tuple[str, str]):
+def _run_tile(task, index: int, fingerprint: tuple[str, str]):
     # A module-level function: dask pickles it by reference, so workers need dice_sweep
     # installed. Each task checks its worker: the check at the start does not see workers
     # that join later, and one tile from another kernel would break the bitwise guarantee.
@@ -70,7 +70,7 @@ def _compute_tile(job, index: int, fingerprint: tuple[str, str]):
         import distributed
 
         raise WrongKernel(distributed.get_worker().address, theirs, fingerprint)
-    return index, job.compute_encoded_tile(index)
+    return index, task.run(index)
 
 
 def _scheduler_address(scheduler: str) -> str:
@@ -120,14 +120,15 @@ def _check_workers(client, scheduler: str | None) -> int:
 
 
 @contextlib.contextmanager
-def dask_tile_results(job, todo: Sequence[int], stop, scheduler: str | None = None,
+def dask_tile_results(task, todo: Sequence[int], stop, scheduler: str | None = None,
                       workers: int | None = None, timeout: float | None = None):
-    """Yield an iterator of (tile index, maps) in completion order, computed on a dask cluster.
+    """Yield an iterator of (tile index, ``task.run(index)``) in completion order, computed on
+    a dask cluster.
 
     Parameters
     ----------
-    job : dice_sweep.sweep.SweepJob
-        The sweep's job; sent once to every worker.
+    task : dice_sweep.executor.TileTask
+        The sweep's work; sent once to every worker.
     todo : sequence of int
         Tile indices to compute.
     stop : object with a bool attribute ``requested``
@@ -154,13 +155,13 @@ def dask_tile_results(job, todo: Sequence[int], stop, scheduler: str | None = No
     pending = set()  # submitted and not yet consumed: cancelled on the way out
     try:
         _check_workers(client, scheduler)
-        # a random key, not the job's hash: once (1 run in about 6 of the suite, not reproduced
+        # a random key, not the task's hash: once (1 run in about 6 of the suite, not reproduced
         # in 12 more) a resume right after an interrupted run on the same cluster got its tiles
         # back cancelled (test_dask_resumes_an_interrupted_file_to_the_same_maps); the likely
         # cause is the first client's clean-up releasing the same hashed key of the job
-        shared_job = client.scatter(job, broadcast=True, hash=False)
+        shared_task = client.scatter(task, broadcast=True, hash=False)
         fingerprint = kernel_fingerprint()
-        pending.update(client.submit(_compute_tile, shared_job, index, fingerprint, pure=False) for index in todo)
+        pending.update(client.submit(_run_tile, shared_task, index, fingerprint, pure=False) for index in todo)
         yield _completed(distributed, pending, stop, scheduler or "local cluster")
     finally:
         if pending:

@@ -1,12 +1,12 @@
 """The one worker pool: every way of covering initial conditions runs its rolls here.
 
-One mapper turns starts into outcomes (:meth:`dice_sweep.sweep.SweepJob.roll`); the ways of
-covering a plane are strategies that hand it work (the shape of Attractors.jl's mappers):
+The mapper (:mod:`dice_sweep.mapper`) turns starts into sides; the ways of covering a plane
+are strategies that hand the pool work (the shape of Attractors.jl's mappers):
 
-- the full grid (dice_sweep.sweep) hands it tiles, whose results arrive in any order and
-  are written as they come (:func:`tile_results`, local or on a dask cluster);
-- quadtree refinement (dice_sweep.refine) and Monte Carlo control maps (dice_sweep.chaos)
-  hand it chunks of arbitrary starts (:func:`ordered_map`);
+- the full grid (dice_sweep.sweep) hands it a :class:`TileTask`, whose tiles' results arrive
+  in any order and are written as they come (:func:`tile_results`, local or on a dask cluster);
+- quadtree refinement, Monte Carlo control maps and forecast ensembles hand it chunks of
+  arbitrary starts (:func:`dice_sweep.mapper.roll_states`, over :func:`ordered_map`);
 - the measured-data loop maps its candidate fits over the same workers (:func:`ordered_map`).
 
 Locally, one worker computes in this process; more are forked processes (which share what
@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import dataclasses
 import multiprocessing
 import multiprocessing.connection
 import os
@@ -52,12 +53,28 @@ def default_workers() -> int:
     return os.cpu_count() or 1
 
 
+def workers_or_default(workers: int | None) -> int:
+    """``workers`` (a count :func:`worker_count` checked), or :func:`default_workers` for None."""
+    return default_workers() if workers is None else int(workers)
+
+
 def worker_count(workers: int | None) -> int:
     """``workers``, or :func:`default_workers` for None; a one-line error outside [1, MAX_WORKERS]."""
-    workers = default_workers() if workers is None else int(workers)
+    workers = workers_or_default(workers)
     if not 1 <= workers <= MAX_WORKERS:
         raise DiceSweepError(f"--workers: {workers} is outside the allowed range [1, {MAX_WORKERS}]")
     return workers
+
+
+def check_executor(executor: str, scheduler: str | None, workers: int | None) -> None:
+    """Refuse an executor this pool does not have, and options it does not combine with
+    (one line each, naming the option)."""
+    if executor not in EXECUTORS:
+        raise DiceSweepError(f"--executor {executor!r}: allowed values are {', '.join(EXECUTORS)}")
+    if scheduler is not None and executor != "dask":
+        raise DiceSweepError("--scheduler: only with --executor dask")
+    if scheduler is not None and workers is not None:
+        raise DiceSweepError("--workers: not with --scheduler (the dask cluster has its own workers)")
 
 
 def _die_with_parent(parent_pid: int) -> None:
@@ -225,31 +242,46 @@ def ordered_map(task: Callable, count: int, workers: int, on_result: Callable[[i
     return results
 
 
+@dataclasses.dataclass(frozen=True)
 class TileTask:
-    """Picklable task of a sweep: item k is tile ``todo[k]`` of ``job``, its maps encoded as
-    the file stores them."""
+    """The work a sweep hands the pool: ``run(index)`` computes tile ``index`` and returns
+    what the writer takes, as it is. The pool knows nothing else of a sweep (not its grid,
+    kernel or file format), and calls nothing else.
 
-    def __init__(self, job, todo: Sequence[int]):
-        self.job = job
+    Attributes
+    ----------
+    run : callable
+        int -> a tile's result. Picklable (a module-level function, or a bound method of a
+        picklable object): dask sends it to its workers.
+    """
+
+    run: Callable[[int], object]
+
+
+class _TodoItems:
+    """Picklable item function of the local pool: item k is tile ``todo[k]`` of ``task``."""
+
+    def __init__(self, task: TileTask, todo: Sequence[int]):
+        self.run = task.run
         self.todo = list(todo)
 
     def __call__(self, k: int):
-        return self.job.compute_encoded_tile(self.todo[k])
+        return self.run(self.todo[k])
 
 
 @contextlib.contextmanager
-def tile_results(job, todo: Sequence[int], workers: int | None, stop: StopRequest, *, executor: str = "local",
+def tile_results(task: TileTask, todo: Sequence[int], workers: int | None, stop: StopRequest, *, executor: str = "local",
                  scheduler: str | None = None):
-    """Yield an iterator of (tile index, encoded maps) of tiles ``todo`` of a sweep job, in
+    """Yield an iterator of (tile index, ``task.run(index)``) of tiles ``todo``, in
     completion order: forked local workers, or tasks on a dask cluster
     (:mod:`dice_sweep.distributed`)."""
     if executor == "dask" and todo:
         from dice_sweep.distributed import dask_tile_results
 
-        with dask_tile_results(job, todo, stop, scheduler=scheduler, workers=workers) as results:
+        with dask_tile_results(task, todo, stop, scheduler=scheduler, workers=workers) as results:
             yield results
         return
     todo = list(todo)
     after_death = "the tiles written are kept: run the same command with --resume to finish"
-    with unordered_results(TileTask(job, todo), len(todo), workers, stop, after_death=after_death) as results:
-        yield ((todo[k], maps) for k, maps in results)
+    with unordered_results(_TodoItems(task, todo), len(todo), workers, stop, after_death=after_death) as results:
+        yield ((todo[k], value) for k, value in results)

@@ -34,19 +34,13 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-from dice_sweep.config import cell_centres, require_grid
+from dice_sweep.config import cell_centres
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.executor import workers_or_default
+from dice_sweep.mapper import Mapper, Plane, roll_states
 from dice_sweep.physics.layout import COUNT_COLUMNS
-from dice_sweep.outputs import SWEEP_FILE, check_outputs
 from dice_sweep.storage import create_whole, exists_error, rolls_to_maps, write_refinement_maps
-from dice_sweep.sweep import (
-    SweepInterrupted,
-    SweepJob,
-    TileGrid,
-    roll_states,
-    sweep_header,
-)
-from dice_sweep.executor import worker_count
+from dice_sweep.sweep import SweepInterrupted, TileGrid, sweep_header
 
 MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse grid
 PRIOR_GROWTH = 0.5  # change of the boundary share per level before two levels are seen: a smooth boundary's halves
@@ -86,14 +80,20 @@ def level_values(lo: float, hi: float, cells: int) -> np.ndarray:
 
 
 def check_levels(cfg, levels: int) -> tuple[int, int]:
-    """(rows, columns) of the coarsest level; refuse levels the grid cannot be halved into.
+    """(rows, columns) of the coarsest level; refuse levels the grid cannot be halved into
+    (the ``--refine`` check, made once, by dice_sweep.app.sweep).
+
+    Parameters
+    ----------
+    cfg : dice_sweep.config.Config
+        A config with a grid.
+    levels : int
 
     Raises
     ------
     DiceSweepError
         If ``levels`` is outside 0 .. ``MAX_LEVELS`` or a grid axis is not divisible by 2^levels.
     """
-    require_grid(cfg)
     if not 0 <= levels <= MAX_LEVELS:
         raise DiceSweepError(f"--refine {levels}: outside the allowed range [0, {MAX_LEVELS}]")
     factor = 2**levels
@@ -104,7 +104,13 @@ def check_levels(cfg, levels: int) -> tuple[int, int]:
                 f"--refine {levels}: grid.{name}.num = {num} is not divisible by 2^{levels} = {factor} "
                 f"(e.g. use {max(factor, num // factor * factor)})"
             )
-    return cfg.grid.y.num // factor, cfg.grid.x.num // factor
+    return coarse_shape(cfg.grid, levels)
+
+
+def coarse_shape(grid, levels: int) -> tuple[int, int]:
+    """(rows, columns) of the coarsest level of ``grid`` halved ``levels`` times (checked by
+    :func:`check_levels`)."""
+    return grid.y.num // 2**levels, grid.x.num // 2**levels
 
 
 @dataclasses.dataclass(frozen=True)
@@ -173,13 +179,10 @@ def estimated_rolls(share: float, previous_share: float | None, cells_next: int,
     return int(sum(cells_next * 4**k * min(1.0, share * growth**k) for k in range(levels_left)))
 
 
-def _roll_cells(job: SweepJob, xs, ys, rows, cols, workers, on_chunk) -> dict[str, np.ndarray]:
+def _roll_cells(mapper: Mapper, plane: Plane, xs, ys, rows, cols, workers, on_chunk) -> dict[str, np.ndarray]:
     """Roll cells (rows[k], cols[k]) of a level with centres xs, ys; 1-D maps by dataset."""
-    states = np.empty((len(rows), len(job.base_state)))
-    states[:] = job.base_state
-    states[:, job.x_column] = xs[cols]
-    states[:, job.y_column] = ys[rows]
-    return rolls_to_maps(COUNT_COLUMNS, (len(rows),), *roll_states(job, states, workers, on_chunk))
+    rolls = roll_states(mapper, plane.cells(xs[cols], ys[rows]), workers, on_chunk)
+    return rolls_to_maps(COUNT_COLUMNS, (len(rows),), *rolls)
 
 
 def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: bool = True, log=None) -> RefinedMaps:
@@ -191,7 +194,7 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
     cfg : dice_sweep.config.Config
         Config whose grid (``num`` divisible by 2^levels on both axes) is the finest level.
     levels : int
-        Number of halvings; 0 is a full sweep.
+        Number of halvings (:func:`check_levels`); 0 is a full sweep.
     workers : int
         Worker processes for the rolls.
     on_chunk : callable, optional
@@ -206,11 +209,11 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
     -------
     RefinedMaps
     """
-    ny0, nx0 = check_levels(cfg, levels)
     grid = cfg.grid
+    ny0, nx0 = coarse_shape(grid, levels)
     full = grid.y.num * grid.x.num
-    job = SweepJob.from_config(cfg)
-    maps = _roll_level(job, grid, (ny0, nx0), workers, on_chunk)
+    mapper, plane = Mapper.from_config(cfg), Plane.from_config(cfg)
+    maps = _roll_level(mapper, plane, grid, (ny0, nx0), workers, on_chunk)
     refine_level = np.zeros((ny0, nx0), dtype=np.uint8)
     rolls_per_level = [ny0 * nx0]
     previous_share = None
@@ -226,7 +229,7 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
             )
             if log is not None:
                 log(decision)
-            maps = _roll_level(job, grid, (grid.y.num, grid.x.num), workers, on_chunk)
+            maps = _roll_level(mapper, plane, grid, (grid.y.num, grid.x.num), workers, on_chunk)
             refine_level = np.full(maps["outcome"].shape, levels, dtype=np.uint8)
             rolls_per_level += [0] * (levels - level) + [full]
             return RefinedMaps(maps, refine_level, levels, sum(rolls_per_level), tuple(rolls_per_level), decision, True)
@@ -241,7 +244,7 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
             # a boundary found at this level can run on into a block that was not refined:
             # follow it there, until every cell on a boundary was rolled at this level
             rows, cols = np.nonzero(refine)
-            for name, values in _roll_cells(job, xs, ys, rows, cols, workers, on_chunk).items():
+            for name, values in _roll_cells(mapper, plane, xs, ys, rows, cols, workers, on_chunk).items():
                 maps[name][rows, cols] = values
             refine_level[rows, cols] = level
             rolls += len(rows)
@@ -256,11 +259,11 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
     return RefinedMaps(maps, refine_level, levels, rolls, tuple(rolls_per_level), decision)
 
 
-def _roll_level(job: SweepJob, grid, shape, workers, on_chunk) -> dict[str, np.ndarray]:
+def _roll_level(mapper: Mapper, plane: Plane, grid, shape, workers, on_chunk) -> dict[str, np.ndarray]:
     """Every cell of the level of ``shape`` (rows, columns) of ``grid``, rolled at its centre."""
     rows, cols = np.indices(shape).reshape(2, -1)
     xs, ys = level_values(grid.x.min, grid.x.max, shape[1]), level_values(grid.y.min, grid.y.max, shape[0])
-    return {name: values.reshape(shape) for name, values in _roll_cells(job, xs, ys, rows, cols, workers, on_chunk).items()}
+    return {name: values.reshape(shape) for name, values in _roll_cells(mapper, plane, xs, ys, rows, cols, workers, on_chunk).items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -327,9 +330,11 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
     ----------
     cfg : dice_sweep.config.Config
     out_path : str or os.PathLike
-        File to create; must not exist.
+        File to create, on a path checked before (:func:`dice_sweep.outputs.check_outputs`);
+        must not exist.
     levels : int
-        Number of halvings of the grid (0 = every pixel rolled).
+        Number of halvings of the grid (0 = every pixel rolled), checked before
+        (:func:`check_levels`).
     workers : int, optional
         Worker processes; default all cores this process may use.
     progress : bool
@@ -345,14 +350,12 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
     Raises
     ------
     DiceSweepError
-        If the output exists, its folder does not, or the grid cannot be halved ``levels`` times.
+        If the output exists.
     dice_sweep.sweep.SweepInterrupted
         On Ctrl-C (the CLI exits with 130); no file is written.
     """
     started = time.perf_counter()
-    check_levels(cfg, levels)
-    workers = worker_count(workers)
-    check_outputs(("--output", out_path, SWEEP_FILE))
+    workers = workers_or_default(workers)
     if os.path.exists(out_path):
         raise exists_error(out_path, "remove it or choose another output file (--refine has no --resume)")
     try:

@@ -378,8 +378,8 @@ def chunk_shape(tile_shape, shape) -> tuple[int, int]:
 class EncodedTile:
     """A tile's maps as the bytes of their HDF5 chunks (shuffle, then deflate), by map name.
 
-    Made by :func:`encode_tile` where the tile is computed (a worker), so that the process
-    writing the file only copies bytes (``write_direct_chunk``) instead of compressing. In a
+    Made by :func:`encode_rolls` where the tile is computed (the sweep's task, in a worker),
+    so that the process writing the file only copies bytes (``write_direct_chunk``) instead of compressing. In a
     development timing (h5py, fig08's 64 x 64 tiles, with the per-tile flush) a tile cost the
     writer 3.1 ms as arrays and 0.4 ms as copied chunks; scripts/bench_scaling.py measures
     the current path.
@@ -408,6 +408,12 @@ def encode_tile(maps: Mapping, chunk: tuple[int, int], count_columns) -> Encoded
         padded[: shape[0], : shape[1]] = maps[name]
         chunks[name] = zlib.compress(_shuffle(padded), _GZIP_LEVEL)
     return EncodedTile(tuple(shape), chunks)
+
+
+def encode_rolls(rolls, shape: tuple[int, int], chunk: tuple[int, int], count_columns) -> EncodedTile:
+    """A tile's kernel outputs (flat, row-major: outcome, status, counts, t_decided) as the
+    file stores them: :func:`rolls_to_maps`, then :func:`encode_tile`."""
+    return encode_tile(rolls_to_maps(count_columns, shape, *rolls), chunk, count_columns)
 
 
 def decode_tile(encoded: EncodedTile, chunk: tuple[int, int], count_columns) -> dict[str, np.ndarray]:

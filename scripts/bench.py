@@ -28,8 +28,9 @@ from pathlib import Path
 import numpy as np
 
 from dice_sweep.config import load_config
+from dice_sweep.mapper import initial_states
 from dice_sweep.physics import COUNT_COLUMNS, pack_params, roll_batch
-from dice_sweep.sweep import SweepJob, axis_values, initial_states, run_sweep
+from dice_sweep.sweep import SweepJob, axis_values, run_sweep
 
 from _docs import publish  # scripts/_docs.py: the script's folder is on sys.path
 

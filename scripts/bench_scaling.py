@@ -2,7 +2,7 @@
 for N machines from measured costs (issue 7; results in docs/scaling.md). Public API only.
 
 Measures, on this machine:
-1. the cost of one 64 x 64 tile (``SweepJob.compute_encoded_tile``: rolls and compression) for fig08 (n = 4) and fig10
+1. the cost of one 64 x 64 tile (``SweepJob.stored_tile``: rolls and compression) for fig08 (n = 4) and fig10
    (n = 20, a zoom of the chaotic region): the unit of work of every executor;
 2. what the writing process pays per tile: pickling a worker's result there and back (what
    crosses the network: the maps already compressed by the worker) and writing it to HDF5
@@ -44,7 +44,7 @@ def tile_cost(config_name, num):
     picks = [round(i * (job.tiles.count - 1) / (SAMPLE_TILES - 1)) for i in range(SAMPLE_TILES)]
     start = time.perf_counter()
     for index in picks:
-        job.compute_encoded_tile(index)
+        job.stored_tile(index)
     seconds = (time.perf_counter() - start) / len(picks)
     return seconds, TILE[0] * TILE[1] / seconds
 
@@ -55,7 +55,7 @@ def client_cost(job, path, tmp):
     The write is timed over every tile of the finished file ``path``, encoded as a worker
     encodes it and written into a new file as ``run_sweep`` writes it (data, record, flush).
     """
-    encoded = job.compute_encoded_tile(0)
+    encoded = job.stored_tile(0)
     start = time.perf_counter()
     for _ in range(50):
         blob = pickle.dumps((0, encoded), protocol=pickle.HIGHEST_PROTOCOL)

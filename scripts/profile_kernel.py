@@ -61,7 +61,8 @@ from dice_sweep.config import load_config  # noqa: E402
 from dice_sweep.physics import COUNT_COLUMNS, pack_params, roll_batch  # noqa: E402
 from dice_sweep.physics import flight, impact, kernel, outcome, pivot  # noqa: E402
 from dice_sweep.physics.params import FP_G, FP_RHO_MAX, FP_WALL, IP_N  # noqa: E402
-from dice_sweep.sweep import axis_values, initial_states  # noqa: E402
+from dice_sweep.mapper import initial_states  # noqa: E402
+from dice_sweep.sweep import axis_values  # noqa: E402
 
 CASES = (
     ("fig08, 128 x 128", "configs/fig08.toml", 128),

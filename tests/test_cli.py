@@ -257,6 +257,13 @@ def test_merge_and_plot_pass_their_arguments(calls):
     ]
 
 
+@pytest.mark.parametrize("command", [("sweep", DEMO), ("merge", "a.h5")])
+def test_an_empty_output_name_is_refused_before_any_work(calls, command):
+    """-o "" is checked as "." (the path the writer would get), not skipped as an option not given."""
+    assert_user_error(run(*command, "-o", ""), "--output: .: wrong file extension")
+    assert calls == []
+
+
 def test_library_user_errors_and_os_errors_become_one_line(calls, monkeypatch):
     import dice_sweep.sweep
     from dice_sweep.errors import DiceSweepError
@@ -268,10 +275,10 @@ def test_library_user_errors_and_os_errors_become_one_line(calls, monkeypatch):
     assert_user_error(run("sweep", DEMO, "-o", "x.h5"), "x.h5: exists")
 
     def unwritable(*args, **kwargs):
-        raise PermissionError(13, "Permission denied", "/root/x.png")
+        raise PermissionError(13, "Permission denied", "x.h5")
 
     monkeypatch.setattr(dice_sweep.sweep, "merge_parts", unwritable)
-    assert_user_error(run("merge", "a.h5", "-o", "/root/x.png"), "Permission denied")
+    assert_user_error(run("merge", "a.h5", "-o", "x.h5"), "Permission denied")
 
 
 def test_interrupted_sweep_exits_130(calls, monkeypatch):

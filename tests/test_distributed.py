@@ -70,19 +70,6 @@ def test_unreachable_scheduler_is_one_line_error(cfg, tmp_path, monkeypatch):
     assert not (tmp_path / "x.h5").exists()
 
 
-@pytest.mark.parametrize(
-    ("options", "message"),
-    [
-        ({"executor": "spark"}, "--executor 'spark': allowed values are local, dask"),
-        ({"scheduler": "tcp://h:8786"}, "--scheduler: only with --executor dask"),
-        ({"executor": "dask", "scheduler": "tcp://h:8786", "workers": 2}, "--workers: not with --scheduler"),
-    ],
-)
-def test_bad_executor_options_are_refused(cfg, tmp_path, options, message):
-    with pytest.raises(DiceSweepError, match=message):
-        run_sweep(cfg, tmp_path / "x.h5", progress=False, **options)
-
-
 class _FakeClient:
     def __init__(self, answers):
         self.answers = answers
@@ -159,12 +146,13 @@ def test_a_failing_task_raises_its_error(cluster, cfg, tmp_path):
     from dice_sweep.distributed import dask_tile_results
     from dice_sweep.sweep import SweepJob
 
-    broken = dataclasses.replace(SweepJob.from_config(cfg, TILE), fpar=None)  # roll_batch refuses None
+    job = SweepJob.from_config(cfg, TILE)
+    broken = dataclasses.replace(job, mapper=dataclasses.replace(job.mapper, fpar=None))  # roll_batch refuses None
 
     class Running:
         requested = False
 
-    with dask_tile_results(broken, [0, 1], Running(), scheduler=cluster.scheduler_address) as results:
+    with dask_tile_results(broken.task(), [0, 1], Running(), scheduler=cluster.scheduler_address) as results:
         with pytest.raises(Exception) as raised:
             next(iter(results))
     assert not isinstance(raised.value, DiceSweepError)

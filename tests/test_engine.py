@@ -24,7 +24,8 @@ from dice_sweep.physics.kernel import REC_WIDTH, roll_batch, roll_one, sample_re
 from dice_sweep.roll import initial_state
 from dice_sweep.physics import COUNT_COLUMNS, pack_params
 from dice_sweep.storage import read_sweep
-from dice_sweep.sweep import SweepJob, axis_values, initial_states, run_sweep
+from dice_sweep.mapper import Mapper, initial_states
+from dice_sweep.sweep import axis_values, run_sweep
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
@@ -42,7 +43,7 @@ def test_plain_engine_reproduces_the_golden_maps(case):
     cfg = golden_config(case, CONFIGS)
     cells = np.arange(0, cfg.grid.x.num * cfg.grid.y.num, GOLDEN_STRIDE)
     states = initial_states(cfg, axis_values(cfg.grid.x), axis_values(cfg.grid.y))[cells]
-    outcome, status, counts, t_decided = SweepJob.from_config(cfg).roll(states, engine.ENGINE_PLAIN)
+    outcome, status, counts, t_decided = Mapper.from_config(cfg).roll(states, engine.ENGINE_PLAIN)
     golden = read_sweep(ROOT / "tests" / "golden" / f"{case.name}.h5")
     np.testing.assert_array_equal(outcome, golden.outcome.ravel()[cells])
     np.testing.assert_array_equal(status, golden.status.ravel()[cells])
@@ -137,9 +138,9 @@ def test_compiled_or_cached_kernels_always_run_compiled(monkeypatch):
     monkeypatch.delenv(engine.ENGINE_VARIABLE, raising=False)
     monkeypatch.setattr(engine, "probe_seconds_per_roll", lambda roll, states: 0.0)
     cfg = load_config(CONFIGS / "demo.toml", ("grid.x.num=2", "grid.y.num=2"))
-    job = SweepJob.from_config(cfg)
-    job.roll(job.base_state[np.newaxis, :].copy(), engine.ENGINE_NUMBA)  # compiled in this process
-    assert job.with_engine_for(job.base_state[np.newaxis, :], 10**9, 1).engine == engine.ENGINE_NUMBA
+    mapper, start = Mapper.from_config(cfg), initial_state(cfg)[np.newaxis, :]
+    mapper.roll(start, engine.ENGINE_NUMBA)  # compiled in this process
+    assert mapper.with_engine_for(start, 10**9, 1).engine == engine.ENGINE_NUMBA
     args = (pack_params(cfg)[0], pack_params(cfg)[1], initial_state(cfg), np.zeros((1, REC_WIDTH)),
             np.zeros(len(COUNT_COLUMNS), np.int32))
     roll_one(*args)

@@ -14,7 +14,7 @@ from dice_sweep.refine import (
     run_refined_sweep,
 )
 from dice_sweep.storage import read_refinement_maps, read_sweep
-from dice_sweep.sweep import SweepJob, initial_states, roll_states
+from dice_sweep.mapper import Mapper, initial_states, roll_states
 from tests.helpers import invoke, small_sweep
 from tests.helpers import run_cli as run
 
@@ -75,10 +75,10 @@ def test_levels_the_grid_cannot_be_halved_into_are_refused():
 
 def test_rolls_do_not_depend_on_the_worker_count():
     cfg = fig08(40)
-    job = SweepJob.from_config(cfg)
-    states = initial_states(cfg, job.xs, job.ys)  # 1600 rolls: one chunk per worker
-    one = roll_states(job, states, 1)
-    two = roll_states(job, np.concatenate([states] * 6), 2)  # several chunks
+    mapper = Mapper.from_config(cfg)
+    states = initial_states(cfg, cfg.grid.x.values(), cfg.grid.y.values())  # 1600 rolls: one chunk per worker
+    one = roll_states(mapper, states, 1)
+    two = roll_states(mapper, np.concatenate([states] * 6), 2)  # several chunks
     for single, parallel in zip(one, two):
         np.testing.assert_array_equal(np.concatenate([single] * 6), parallel)
 

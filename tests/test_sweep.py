@@ -15,6 +15,7 @@ import pytest
 
 from dice_sweep.config import parse_config
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.mapper import Mapper, initial_states
 from dice_sweep.physics import STATE_COLUMNS
 from dice_sweep.storage import NOT_COMPUTED, read_sweep
 from dice_sweep.sweep import (
@@ -23,7 +24,6 @@ from dice_sweep.sweep import (
     SweepSummary,
     TileGrid,
     axis_values,
-    initial_states,
     merge_parts,
     parse_shard,
     run_sweep,
@@ -124,9 +124,10 @@ def test_any_tile_order_gives_the_same_maps(cfg, reference):
     outcome = np.full((7, 10), 99, dtype=np.int8)
     t_decided = np.zeros((7, 10), dtype=np.float32)
     for index in order:
-        maps = job.compute_tile(index)
-        outcome[job.tiles.bounds(index)] = maps["outcome"]
-        t_decided[job.tiles.bounds(index)] = maps["t_decided"]
+        rolls = job.tile_rolls(index)
+        bounds = job.tiles.bounds(index)
+        outcome[bounds] = rolls.outcome.reshape(outcome[bounds].shape)
+        t_decided[bounds] = rolls.t_decided.reshape(t_decided[bounds].shape)
     assert outcome.tobytes() == reference.outcome.tobytes()
     assert t_decided.tobytes() == reference.t_decided.tobytes()
 
@@ -154,11 +155,6 @@ def test_existing_output_is_refused_without_resume(cfg, tmp_path):
     with pytest.raises(DiceSweepError, match="exists; use --resume or remove it"):
         sweep(cfg, path)
     assert path.read_bytes() == b"keep me"
-
-
-def test_config_without_grid_is_refused(tmp_path):
-    with pytest.raises(DiceSweepError, match="grid: missing; sweep needs a \\[grid\\]"):
-        sweep(parse_config("", "single.toml"), tmp_path / "out.h5")
 
 
 @pytest.fixture(scope="module")
@@ -307,34 +303,38 @@ def test_ctrl_c_stops_parent_and_workers_cleanly(cfg, reference, tmp_path):
 
 
 def test_an_error_in_a_worker_reaches_the_parent_with_its_traceback(cfg):
-    """A tile that raises in a forked worker raises the same error in the parent, caused by
-    the worker's traceback, instead of a tile to write."""
+    """A tile that raises in a forked worker raises the error it raises in this process,
+    caused by the worker's traceback, instead of a tile to write."""
     import dataclasses
 
     from dice_sweep.executor import StopRequest, tile_results
-    from dice_sweep.sweep import SweepJob
 
-    broken = dataclasses.replace(SweepJob.from_config(cfg, TILE), fpar=None)  # roll_batch refuses None
+    job = SweepJob.from_config(cfg, TILE)
+    broken = dataclasses.replace(job, mapper=dataclasses.replace(job.mapper, fpar=None))  # roll_batch refuses None
+    with pytest.raises(Exception) as here:
+        broken.stored_tile(0)
     with pytest.raises(Exception) as raised, StopRequest() as stop:
-        with tile_results(broken, list(range(N_TILES)), 2, stop) as results:
+        with tile_results(broken.task(), list(range(N_TILES)), 2, stop) as results:
             next(iter(results))
     assert not isinstance(raised.value, DiceSweepError)
-    assert "compute_encoded_tile" in str(raised.value.__cause__)
+    assert type(raised.value) is type(here.value)
+    worker_traceback = str(raised.value.__cause__)
+    assert worker_traceback.lstrip().startswith("Traceback (most recent call last)")
+    assert type(here.value).__name__ in worker_traceback
 
 
 def test_a_killed_worker_stops_the_sweep_with_a_resumable_file(cfg, reference, tmp_path, monkeypatch):
     """A worker killed mid-sweep (as by the OOM killer) is a one-line error, not a file
     that looks complete or a hang; --resume finishes the file."""
-    from dice_sweep.sweep import SweepJob
+    rolled, parent = Mapper.roll, os.getpid()
+    tile_4 = SweepJob.from_config(cfg, TILE).tile_states(4)
 
-    computed = SweepJob.compute_encoded_tile
-
-    def dies_on_tile_4(self, index):
-        if index == 4:
+    def dies_on_tile_4(self, states, engine=None):
+        if os.getpid() != parent and np.array_equal(states, tile_4):
             os.kill(os.getpid(), signal.SIGKILL)
-        return computed(self, index)
+        return rolled(self, states, engine)
 
-    monkeypatch.setattr(SweepJob, "compute_encoded_tile", dies_on_tile_4)  # the workers are forked
+    monkeypatch.setattr(Mapper, "roll", dies_on_tile_4)  # the workers are forked
     path = tmp_path / "killed_worker.h5"
     with pytest.raises(DiceSweepError, match="worker process ended with exit code -9.*--resume") as raised:
         sweep(cfg, path, workers=2)

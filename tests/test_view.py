@@ -22,7 +22,8 @@ import pytest
 from dice_sweep.config import load_config, parse_config
 from dice_sweep.roll import roll_config
 from dice_sweep.storage import read_sweep
-from dice_sweep.sweep import SweepJob, axis_values, initial_states
+from dice_sweep.mapper import Mapper, initial_states
+from dice_sweep.sweep import axis_values
 from dice_sweep.view.app import MAX_PIXELS, ViewApp
 from dice_sweep.view.headless import CHROMIUM, launch, open_page, wait_until
 from dice_sweep.view.server import bind
@@ -117,7 +118,7 @@ def test_zoomed_map_has_the_cell_centres_and_the_kernels_outcomes(server):
     assert np.allclose(answer["x"], centres_x, rtol=0, atol=1e-12) and np.allclose(answer["y"], centres_y, rtol=0, atol=1e-15)
     cfg = zoom_config(ZOOM)
     states = initial_states(cfg, axis_values(cfg.grid.x), axis_values(cfg.grid.y))
-    expected = SweepJob.from_config(cfg).roll(states)[0].reshape(ZOOM["ny"], ZOOM["nx"])
+    expected = Mapper.from_config(cfg).roll(states).outcome.reshape(ZOOM["ny"], ZOOM["nx"])
     assert np.array_equal(np.array(answer["outcome"], dtype=np.int8), expected)
     assert len(set(np.unique(expected))) > 1  # the zoom crosses a boundary: a real check
     assert answer["stats"]["shares"]["sides"] == pytest.approx([np.mean(expected == side) for side in range(4)])

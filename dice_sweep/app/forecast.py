@@ -79,7 +79,7 @@ def release_map(cfg, source, run, size, axes=None, workers=1):
     """The final-state map over the release states (the two initial values that vary most,
     or ``axes``), the other initial values at the drops' medians, the fitted parameters;
     its chaos measures and where the drops sit. Returns (JSON-ready dict, picture data)."""
-    from dice_sweep.sweep import SweepJob, initial_states, roll_states
+    from dice_sweep.mapper import Mapper, initial_states, roll_states
 
     flights = run.release
     states = fc.true_states(cfg, source.params, np.array([f.state for f in flights]).reshape(-1, 6))
@@ -107,7 +107,7 @@ def release_map(cfg, source, run, size, axes=None, workers=1):
     clear = fc.clear_starts(model, starts)
     outcome = np.full(len(starts), -1, np.int8)
     if clear.any():
-        outcome[clear] = roll_states(SweepJob.from_config(model), starts[clear], workers)[0]
+        outcome[clear] = roll_states(Mapper.from_config(model), starts[clear], workers)[0]
     outcome = outcome.reshape(size, size)
     measures = measure_map(outcome, sides, DEFAULT_BOX_SIZE, x_step=(ranges[0][1] - ranges[0][0]) / size,
                            y_step=(ranges[1][1] - ranges[1][0]) / size)

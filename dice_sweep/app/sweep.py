@@ -1,18 +1,24 @@
-"""The ``sweep`` and ``plot`` commands: a config in, a sweep file and its final-state diagram out.
+"""The ``sweep``, ``merge`` and ``plot`` commands: a config in, a sweep file and its
+final-state diagram out.
 
 The application layer joins what the lower layers keep apart: dice_sweep.sweep and
 dice_sweep.refine compute and write the file, storage reads it back, config turns its stored
-text into a title, plotting draws.
+text into a title, plotting draws. The command's inputs are checked here, once, before any
+work (the config itself when it was loaded, the option values by the command line); the
+layers below take them as checked.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import numpy as np
 
 from dice_sweep.config import parse_config, require_grid
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.executor import check_executor
+from dice_sweep.outputs import SWEEP_FILE, check_outputs
 from dice_sweep.storage import read_sweep
 
 
@@ -58,17 +64,34 @@ def draw_sweep_files(h5_paths: Sequence, png_path, *, titles=None, dpi=100):
 def sweep(cfg, out_path, *, png_path=None, workers=None, shard=(0, 1), resume=False, progress=True, refine_levels=None,
           executor="local", scheduler=None, log=None, warn=None):
     """The ``sweep`` command: a full, sharded, resumed, dask or refined sweep of ``cfg`` into
-    ``out_path``, then its diagram if asked. Returns (summary, pictures written)."""
-    from dice_sweep.refine import run_refined_sweep
+    ``out_path``, then its diagram if asked. Returns (summary, pictures written).
+
+    ``cfg`` is a loaded (validated) config, ``shard`` and ``workers`` the checked option values
+    (:func:`dice_sweep.sweep.parse_shard`, :func:`dice_sweep.executor.worker_count`), the
+    output paths checked (:func:`dice_sweep.outputs.check_outputs`). What only this command
+    asks is checked here: a grid, ``--refine``'s levels and what it combines with, the executor.
+    """
+    from dice_sweep.refine import check_levels, run_refined_sweep
     from dice_sweep.sweep import run_sweep
 
     require_grid(cfg)
     if refine_levels is not None:
         if resume or shard != (0, 1) or executor != "local":
             raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")
+        check_levels(cfg, refine_levels)
         summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=progress, log=log)
     else:
+        check_executor(executor, scheduler, workers)
         summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=progress,
                             executor=executor, scheduler=scheduler)
     written = [draw_sweep_file(out_path, png_path, warn=warn)] if png_path else []
     return summary, written
+
+
+def merge(part_paths: Sequence, out_path):
+    """The ``merge`` command: the complete shard files of one sweep joined into ``out_path``
+    (:func:`dice_sweep.sweep.merge_parts`). Returns its summary."""
+    from dice_sweep.sweep import merge_parts
+
+    check_outputs(("--output", Path(out_path), SWEEP_FILE))  # a Path: an empty name is checked too, as "."
+    return merge_parts(part_paths, out_path)

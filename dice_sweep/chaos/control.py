@@ -3,8 +3,8 @@ each side with a probability that depends on the aimed point. It is the Gaussian
 side's indicator on a fine map, or, where the map is too coarse for that (or a scattered
 value is not an axis of the map), the share of Monte Carlo rolls that land on the side.
 
-The Monte Carlo rolls are a strategy over the one worker pool (dice_sweep.executor), through
-:func:`dice_sweep.sweep.roll_states`.
+The Monte Carlo rolls are a strategy over the mapper (:func:`dice_sweep.mapper.roll_states`,
+on the one worker pool).
 """
 
 from __future__ import annotations
@@ -17,10 +17,10 @@ import numpy as np
 from dice_sweep.chaos.measures import UNDECIDED
 from dice_sweep.config import GRID_PARAMS, PARAM_UNITS, parse_config
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.executor import worker_count
+from dice_sweep.executor import workers_or_default
 from dice_sweep.geometry import clear_of_surfaces
 from dice_sweep.physics.layout import STATE_COLUMNS
-from dice_sweep.sweep import SweepJob, initial_states, roll_states
+from dice_sweep.mapper import Mapper, initial_states, roll_states
 
 BLUR_MIN_PIXELS = 2.0  # the blur needs sigma at least this many cells wide on a blurred axis
 BLUR_TRUNCATE = 4.0  # the Gaussian kernel is cut at this many sigma
@@ -292,7 +292,7 @@ def monte_carlo_probabilities(cfg, xs, ys, sigmas, samples, *, seed=0, workers=1
     """
     sides = cfg.die.sides
     starts = scattered_starts(cfg, initial_states(cfg, xs, ys), sigmas, samples, np.random.default_rng(seed))
-    outcome = roll_states(SweepJob.from_config(cfg), starts, workers)[0].astype(np.int64)
+    outcome = roll_states(Mapper.from_config(cfg), starts, workers)[0].astype(np.int64)
     codes = np.where(outcome == UNDECIDED, sides, outcome).reshape(len(ys) * len(xs), samples)
     counts = np.stack([(codes == k).sum(axis=1) for k in range(sides + 1)])
     return (counts / samples).reshape(sides + 1, len(ys), len(xs))
@@ -305,7 +305,7 @@ def _monte_carlo_control(sweep, sigmas, samples, max_points, seed, workers) -> C
     if len(xs) * len(ys) * samples > MAX_MC_ROLLS:
         raise DiceSweepError(f"--samples {samples} at {len(ys)} x {len(xs)} points: {len(xs) * len(ys) * samples} rolls "
                              f"(allowed: --samples x points at most {MAX_MC_ROLLS}; lower --samples or --points)")
-    workers = worker_count(workers)
+    workers = workers_or_default(workers)
     probability = monte_carlo_probabilities(cfg, xs, ys, sigmas, samples, seed=seed, workers=workers)
     return ControlMap(
         "monte_carlo", dict(sigmas), sweep.sides, sweep.x.param, sweep.y.param, xs, ys, probability, samples

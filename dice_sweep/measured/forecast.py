@@ -53,7 +53,8 @@ from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.diagnose import Z95
 from dice_sweep.measured.fit import kernel_config
 from dice_sweep.measured.impacts import rest_pose
-from dice_sweep.physics import COUNT_COLUMNS, STATE_COLUMNS, pack_params, roll_batch
+from dice_sweep.mapper import Mapper
+from dice_sweep.physics import STATE_COLUMNS
 
 MIN_MEMBERS = 1000  # the command refuses smaller ensembles (the library takes any >= 1)
 DEFAULT_MEMBERS = 2000
@@ -198,18 +199,9 @@ def true_states(cfg, values, states):
 
 
 def roll(cfg_physical, states):
-    """(outcome, status) of ``roll_batch`` on ``states`` (kernel units) to rest."""
-    fpar, ipar = pack_params(cfg_physical)
-    return _roll(fpar, ipar, states)
-
-
-def _roll(fpar, ipar, states):
-    states = np.ascontiguousarray(states, dtype=np.float64)
-    n = len(states)
-    outcome = np.empty(n, np.int8)
-    status = np.empty(n, np.uint8)
-    roll_batch(fpar, ipar, states, outcome, status, np.empty((n, len(COUNT_COLUMNS)), np.int32), np.empty(n))
-    return outcome, status
+    """(outcome, status) of the mapper on ``states`` (kernel units) to rest, in this process."""
+    rolls = Mapper.from_config(cfg_physical).roll(np.ascontiguousarray(states, dtype=np.float64))
+    return rolls.outcome, rolls.status
 
 
 def clear_starts(cfg, states):

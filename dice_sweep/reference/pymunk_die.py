@@ -454,9 +454,9 @@ class PymunkMap:
 def grid_states(cfg):
     """Axis values xs, ys and the initial states of ``cfg``'s grid, shape (len(ys) * len(xs), 6),
     rows y slow and x fast, as the maps are stored."""
-    from dice_sweep.sweep import axis_values, initial_states
+    from dice_sweep.mapper import initial_states
 
-    xs, ys = axis_values(cfg.grid.x), axis_values(cfg.grid.y)
+    xs, ys = cfg.grid.x.values(), cfg.grid.y.values()
     return xs, ys, initial_states(cfg, xs, ys)
 
 
@@ -492,13 +492,12 @@ def compare_with_kernel(cfg, *, dt=1e-4, settings=PymunkSettings()):
     -------
     MapComparison
     """
+    from dice_sweep.mapper import Mapper
     from dice_sweep.physics.layout import COUNT_COLUMNS
-    from dice_sweep.sweep import SweepJob
 
-    job = SweepJob.from_config(cfg)
     xs, ys, states = grid_states(cfg)
     shape = (len(ys), len(xs))
-    kernel_outcome, kernel_status, kernel_counts, _ = job.roll(states)
+    kernel_outcome, kernel_status, kernel_counts, _ = Mapper.from_config(cfg).roll(states)
     reference = pymunk_map(cfg, dt=dt, settings=settings)
     return MapComparison(
         kernel=kernel_outcome.reshape(shape),

@@ -20,10 +20,10 @@ import numpy as np
 from dice_sweep.chaos import DEFAULT_BOX_SIZE, basin_entropy, outcome_fractions
 from dice_sweep.config import PARAM_UNITS, Axis, Grid, check_initial_clear, config_to_toml, parse_config
 from dice_sweep.errors import ConfigError, DiceSweepError
-from dice_sweep.executor import worker_count
+from dice_sweep.executor import workers_or_default
+from dice_sweep.mapper import Mapper, initial_states
 from dice_sweep.physics.layout import EVENT_IMPACT, REC_ENERGY, REC_EVENT, REC_KIND, REC_T, SEG_SLIDE, STATE_COLUMNS
 from dice_sweep.storage import read_sweep
-from dice_sweep.sweep import SweepJob, axis_values, initial_states
 
 MAX_PIXELS = 512  # cells per axis of a zoomed map: 262144 rolls and ~0.6 MB of JSON at most
 MAX_FILE_PIXELS = 1024  # cells per axis of the file's map sent to the page; a larger file is sampled
@@ -155,9 +155,9 @@ class ViewApp:
         self.cfg = parse_config(self.sweep.config_toml, source=f"{self.path}: config_toml")
         if self.cfg.grid is None:
             raise DiceSweepError(f"{self.path}: its config has no [grid] (not a sweep file)")
-        self.workers = worker_count(workers)
+        self.workers = workers_or_default(workers)
         self.sides = self.cfg.die.sides
-        self.job = SweepJob.from_config(self.cfg)
+        self.mapper = Mapper.from_config(self.cfg)
         self._pool = None
         self._maps = threading.BoundedSemaphore(MAX_MAPS_AT_ONCE)
         from dice_sweep.plotting import NOT_COMPUTED_COLOR, UNDECIDED_COLOR, outcome_colors, outcome_title
@@ -171,9 +171,10 @@ class ViewApp:
 
     def start(self) -> None:
         """Start the worker processes (in the background: the first zoom waits for them)."""
+        from dice_sweep.roll import initial_state
         from dice_sweep.view.pool import RollPool
 
-        self._pool = RollPool(self.job, self.workers)
+        self._pool = RollPool(self.mapper, initial_state(self.cfg), self.workers)
         self._pool.start()
 
     def close(self) -> None:
@@ -293,10 +294,10 @@ class ViewApp:
         try:
             started = time.perf_counter()
             grid = request.cfg.grid
-            xs, ys = axis_values(grid.x), axis_values(grid.y)
+            xs, ys = grid.x.values(), grid.y.values()
             states = initial_states(request.cfg, xs, ys)
-            job = SweepJob.from_config(request.cfg).with_engine_for(states, len(states), self.workers)
-            outcome = self._pool.roll_map(job, states, (request.ny, request.nx), on_band, cancelled)
+            mapper = Mapper.from_config(request.cfg).with_engine_for(states, len(states), self.workers)
+            outcome = self._pool.roll_map(mapper, states, (request.ny, request.nx), on_band, cancelled)
             seconds = time.perf_counter() - started
         finally:
             self._maps.release()
@@ -309,7 +310,7 @@ class ViewApp:
             "stats": map_stats(outcome, self.sides),
             "rolls": int(outcome.size),
             "seconds": seconds,
-            "engine": job.engine,
+            "engine": mapper.engine,
         }
 
     def config_text(self, request: MapRequest) -> str:

@@ -29,7 +29,7 @@ class Cancelled(Exception):
     """The map is not wanted any more (the page moved on, or the server is stopping)."""
 
 
-def _init_worker(job) -> None:
+def _init_worker(mapper, start) -> None:
     # Ctrl-C reaches the whole process group; the server stops the workers itself.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     if sys.platform.startswith("linux"):  # a server killed by SIGKILL takes its workers along
@@ -38,11 +38,11 @@ def _init_worker(job) -> None:
         except (OSError, AttributeError):
             pass
     # load (or, on a cold cache, build) the kernel now rather than at the first zoom
-    job.with_engine_for(job.base_state[np.newaxis, :].copy(), 1, 1).warm_up()
+    mapper.with_engine_for(start[np.newaxis, :].copy(), 1, 1).warm_up(start)
 
 
-def _roll_band(job, states: np.ndarray) -> np.ndarray:
-    return job.roll(states)[0]
+def _roll_band(mapper, states: np.ndarray) -> np.ndarray:
+    return mapper.roll(states).outcome
 
 
 def _nothing() -> None:
@@ -57,20 +57,23 @@ def bands(ny: int, nx: int, workers: int) -> list[tuple[int, int]]:
 
 
 class RollPool:
-    """``workers`` spawned processes rolling bands of a map's starts.
+    """``workers`` spawned processes rolling bands of a map's starts with the mapper.
 
     Parameters
     ----------
-    job : dice_sweep.sweep.SweepJob
-        The file's job: its kernel parameters are every zoom's (a grid changes only starts).
+    mapper : dice_sweep.mapper.Mapper
+        The file's model: every zoom's (a grid changes only starts).
+    start : numpy.ndarray
+        float64 (6,): a start each worker rolls once to load the kernel (the file's [initial] state).
     workers : int
         Processes, at least 1.
     """
 
-    def __init__(self, job, workers: int):
+    def __init__(self, mapper, start, workers: int):
         self.workers = max(1, int(workers))
         self._executor = ProcessPoolExecutor(
-            self.workers, mp_context=multiprocessing.get_context("spawn"), initializer=_init_worker, initargs=(job,)
+            self.workers, mp_context=multiprocessing.get_context("spawn"), initializer=_init_worker,
+            initargs=(mapper, np.asarray(start, dtype=np.float64))
         )
         self._closed = False
 
@@ -79,8 +82,8 @@ class RollPool:
         for _ in range(self.workers):
             self._executor.submit(_nothing)
 
-    def roll_map(self, job, states: np.ndarray, shape: tuple[int, int], on_band=None, cancelled=None) -> np.ndarray:
-        """Outcomes of ``states`` (row-major over ``shape`` = (ny, nx)) as an int8 (ny, nx) map.
+    def roll_map(self, mapper, states: np.ndarray, shape: tuple[int, int], on_band=None, cancelled=None) -> np.ndarray:
+        """Outcomes of the mapper on ``states`` (row-major over ``shape`` = (ny, nx)) as an int8 (ny, nx) map.
 
         ``on_band(first_row, end_row, outcome_rows, rolls_done)`` is called as each band
         arrives (in any order); it may raise to stop. ``cancelled()`` is asked between bands;
@@ -96,7 +99,7 @@ class RollPool:
             band = next(todo, None)
             if band is not None:
                 first, end = band
-                pending[self._executor.submit(_roll_band, job, states[first * nx : end * nx])] = band
+                pending[self._executor.submit(_roll_band, mapper, states[first * nx : end * nx])] = band
 
         try:
             for _ in range(2 * self.workers):  # one running and one queued per worker
