@@ -294,16 +294,20 @@ def side_below(sides, phi):
     return index if index.ndim else int(index)
 
 
-def clear_of_surfaces(sides, circumradius, separation, states):
-    """bool (N,): starts (rows x, y, phi, ...) with no corner inside the table, nor inside a
-    wall when ``separation`` (m) is not None: the die's reach along each surface's normal
-    (:func:`support`) fits in the room its centre leaves. The config checks its own starts
-    the same way (with a round-off tolerance, to name the value that fails), for a rounded
-    die at its rounded reach; this uses the sharp corners, which enclose a rounded die."""
+def clear_of_surfaces(sides, circumradius, separation, states, corner_radius=0.0):
+    """bool (N,): starts (rows x, y, phi, ...) with no part of the die inside the table, nor
+    inside a wall when ``separation`` (m) is not None: the die's reach along each surface's
+    normal (:func:`support`, rounded at ``corner_radius`` m) fits in the room its centre leaves.
+    The config checks its own starts the same way (with a round-off tolerance, to name the
+    value that fails)."""
     states = np.asarray(states, dtype=float)
     x, y, phi = states[:, 0], states[:, 1], states[:, 2]
-    clear = y >= support(sides, circumradius, phi, DOWN)
+
+    def reach(direction):
+        return support(sides, circumradius, phi, direction, corner_radius)
+
+    clear = y >= reach(DOWN)
     if separation is not None:
         half = 0.5 * separation
-        clear &= (x + support(sides, circumradius, phi, 0.0) <= half) & (x - support(sides, circumradius, phi, np.pi) >= -half)
+        clear &= (x + reach(0.0) <= half) & (x - reach(np.pi) >= -half)
     return clear

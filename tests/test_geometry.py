@@ -208,3 +208,16 @@ def test_support_at_zero_radius_is_the_sharp_one_bit_for_bit():
         offset = np.mod(0.3 - phi, spacing)
         sharp = R * np.cos(np.minimum(offset, spacing - offset))  # R cos(angle to the nearest corner)
         np.testing.assert_array_equal(geometry.support(sides, R, phi, 0.3, 0.0), sharp)
+
+
+def test_scattered_starts_are_cleared_at_the_rounded_reach():
+    """A square with phi = 0 (a corner straight down) at height y: the sharp reach is R, the
+    rounded one sqrt(2) (a - r) + r (a the apothem, the arc centre at Rc = sqrt(2)(a - r)), so
+    a centre between the two heights is clear only for the rounded die."""
+    radius, r = 0.01, 0.002
+    a = radius * math.cos(math.pi / 4)
+    rounded_reach = math.sqrt(2) * (a - r) + r
+    y = 0.5 * (rounded_reach + radius)
+    states = np.array([[0.0, y, 0.0, 0, 0, 0], [0.0, rounded_reach - 1e-9, 0.0, 0, 0, 0]])
+    assert geometry.clear_of_surfaces(4, radius, None, states).tolist() == [False, False]
+    assert geometry.clear_of_surfaces(4, radius, None, states, corner_radius=r).tolist() == [True, False]

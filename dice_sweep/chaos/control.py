@@ -260,7 +260,7 @@ def scattered_starts(cfg, centres, sigmas, samples, rng) -> np.ndarray:
     redraw = np.ones(len(starts), dtype=bool)
     for _ in range(START_DRAWS):
         starts[redraw] = aimed[redraw] + rng.standard_normal((int(redraw.sum()), len(scale))) * scale
-        redraw = ~clear_of_surfaces(cfg.die.sides, cfg.die.circumradius, cfg.walls.separation, starts)
+        redraw = ~clear_of_surfaces(cfg.die.sides, cfg.die.circumradius, cfg.walls.separation, starts, cfg.effects.corner_radius)
         if not redraw.any():
             break
     starts[redraw] = aimed[redraw]

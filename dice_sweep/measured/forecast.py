@@ -206,7 +206,7 @@ def roll(cfg_physical, states):
 
 def clear_starts(cfg, states):
     """bool (n,): starts with no corner inside the table or a wall."""
-    return clear_of_surfaces(cfg.die.sides, cfg.die.circumradius, cfg.walls.separation, states)
+    return clear_of_surfaces(cfg.die.sides, cfg.die.circumradius, cfg.walls.separation, states, cfg.effects.corner_radius)
 
 
 # --- what was seen: flights and resting sides ------------------------------------------------
