@@ -18,10 +18,11 @@ from dice_sweep.chaos.measures import DEFAULT_BOX_SIZE, measure_map
 from dice_sweep.config import PARAM_UNITS, Axis, Grid
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import worker_count
-from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured import forecast as fc
 from dice_sweep.measured.fit import kernel_config
+from dice_sweep.measured.noise import tracking_noise
 from dice_sweep.measured.report import jsonable
+from dice_sweep.measured.split import CONFIRM_FRACTION
 from dice_sweep.measured.tracks import load_tracks
 from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
 
@@ -43,7 +44,7 @@ def read_fit_file(path, cfg):
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise DiceSweepError(f"--fit: {path}: not JSON ({error}) "
                              "(allowed: the JSON written by dice-sweep fit --json or dice-sweep diagnose --json)") from None
-    return fc.parse_fit(data, path, cfg, loop.CONFIRM_FRACTION, 0)
+    return fc.parse_fit(data, path, cfg, CONFIRM_FRACTION, 0)
 
 
 def parse_map_axes(text):
@@ -167,7 +168,7 @@ def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.
     _check_angle(source, angle)
     workers = worker_count(workers)
     trackset = load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle)
-    table, noise, sigma = loop.tracking_noise(trackset, cfg)
+    table, noise, sigma = tracking_noise(trackset, cfg)
     loaded = time.perf_counter()
     intro = f"{len(trackset.tracks)} tracks; noise floor {noise['pose'] * 1000:.3f} mm; {source.parameter_note}"
     run = fc.run_forecast(trackset, cfg, source, sigma=sigma, table=table, from_bounce=from_bounce, members=members, seed=seed,

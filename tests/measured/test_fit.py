@@ -58,11 +58,11 @@ def test_frame_rows_point_at_the_frames_each_row_measures(segments):
 
 
 def test_the_noise_covariance_matches_refits_of_simulated_noise(tmp_path):
-    """First-order noise sd (diagnose.noise_covariance) against the spread of warm refits of the
+    """First-order noise sd (reduced.noise_covariance) against the spread of warm refits of the
     fitted model's poses with tracking noise added, one draw per frame: the nonlinear fit, not
     the linear algebra (tests/measured/test_reduced.py does that). 30 refits: the spread's own
     uncertainty is about 13 %."""
-    from dice_sweep.measured import diagnose as loop
+    from dice_sweep.measured import reduced
     from tests.measured.cases import NOISE as TRACKER
 
     path = tmp_path / "drops.csv"
@@ -72,8 +72,8 @@ def test_the_noise_covariance_matches_refits_of_simulated_noise(tmp_path):
     seg = shooting.Segments(shooting.prepare_tracks(load_tracks(path, sides=4, circumradius=RADIUS), cfg, noise=sigma), cfg.world.g)
     spec = shooting.ModelSpec.of(cfg)
     fit = shooting.fit_spec(cfg, spec, seg)
-    red = loop._reduce(shooting.linearise(cfg, fit, seg), seg)
-    first_order = np.sqrt(np.diag(loop.noise_covariance(red, seg, (sigma[0], sigma[1], RADIUS * sigma[2]))))
+    red = reduced.reduce(shooting.linearise(cfg, fit, seg), seg)
+    first_order = np.sqrt(np.diag(reduced.noise_covariance(red, seg, (sigma[0], sigma[1], RADIUS * sigma[2]))))
     clean, _ = shooting.ShootingModel(cfg, spec, seg).simulate(fit.params, fit.states)
     rng = np.random.default_rng(1)
     refits = []
@@ -149,3 +149,4 @@ def test_the_damping_floor_is_a_share_of_the_largest_scaled_curvature():
     largest = max(4.0 * 0.1**2, 2.0 * 1e-6)  # beta-like 0.04 beats the third's 2e-6
     assert floor == pytest.approx(shooting.PARAM_DAMPING_FLOOR * largest / scales**2)
     assert shooting._damping_floor(np.zeros((0, 0)), np.zeros(0)).size == 0
+
