@@ -34,10 +34,9 @@ from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured.blocks import Linearisation, damped_inverse, normal_blocks, segment_sums
 from dice_sweep.measured.flights import segment_track
-from dice_sweep.physics import pack_params
 from dice_sweep.physics.kernel import sample_batch
 from dice_sweep.physics.layout import PATH_CUT, SAMPLE_RECORDS
-from dice_sweep.physics.params import FP_DRAG_MAX_STEP, FP_DRAG_TOL, IP_CONTINUE
+from dice_sweep.physics.params import FP_DRAG_MAX_STEP, FP_DRAG_TOL, FP_TMAX, IP_CONTINUE, KeyWriter
 
 MIN_FLIGHT_FRAMES = 4  # a flight needs this many usable frames to carry a state of its own
 ROBUST_SCALE = 0.05  # R: soft-L1 scale; larger misfits (a bounce that went another way) count less
@@ -200,17 +199,27 @@ class Segments:
         self.guess = np.array(guess).reshape(-1, 6)
 
 
+def _physical(values):
+    """The ``values`` (name -> value) the kernel reads: measurement effects are maps of the
+    poses, not the kernel's."""
+    return {k: v for k, v in values.items() if registry.param(k).key.split(".")[0] != "tracking"}
+
+
 def kernel_config(cfg, spec, values, **integrator):
     """The config the kernel runs at fitted ``values``: the spec's effects on, the physical
-    parameters set (measurement effects are maps of the poses, not the kernel's), the event
-    integrator; ``integrator`` overrides more of its keys (``t_max``)."""
-    physical = {k: v for k, v in values.items() if registry.param(k).key.split(".")[0] != "tracking"}
-    out = registry.with_values(cfg, spec.effects, physical)
+    parameters set, the event integrator; ``integrator`` overrides more of its keys (``t_max``)."""
+    out = registry.with_values(cfg, spec.effects, _physical(values))
     return dataclasses.replace(out, integrator=dataclasses.replace(out.integrator, method="event", **integrator))
 
 
 class ShootingModel:
-    """Simulated poses of segments for a spec's parameters and the segments' states."""
+    """Simulated poses of segments for a spec's parameters and the segments' states.
+
+    The kernel's vectors are packed once, from the config with the spec's effects switched on;
+    each evaluation writes the parameters' values straight into a copy of ``fpar`` through
+    their registry slots (:class:`dice_sweep.physics.params.KeyWriter`), bit for bit the
+    vectors of :func:`kernel_config` packed.
+    """
 
     def __init__(self, cfg, spec, segments):
         self.cfg = cfg
@@ -218,17 +227,23 @@ class ShootingModel:
         self.seg = segments
         self.names = spec.param_names()
         self.radius = cfg.die.circumradius
+        self.packed = KeyWriter(kernel_config(cfg, spec, {}))
+        self.packed.fpar[FP_DRAG_TOL] = FIT_DRAG_TOL
+        self.packed.fpar[FP_DRAG_MAX_STEP] = FIT_DRAG_MAX_STEP
+        self.packed.ipar[IP_CONTINUE] = 1
+
+    def kernel_params(self, values, t_max):
+        """(fpar, ipar) of the kernel at ``values`` (name -> value) and time limit ``t_max`` (s)."""
+        fpar = self.packed.fpar_with({registry.param(name).key: value for name, value in _physical(values).items()})
+        fpar[FP_TMAX] = t_max
+        return fpar, self.packed.ipar
 
     def simulate(self, values, states):
         """Poses (rows, 3) as the tracker would see them, and the outcome code per segment."""
         times_to_true, state_to_true, pose_to_file = registry.measurement_maps(self.cfg, values)
         times = times_to_true(self.seg.times)
         horizon = float(times.max()) if times.size else 0.0
-        cfg = kernel_config(self.cfg, self.spec, values, t_max=horizon + 1e-3)
-        fpar, ipar = pack_params(cfg)
-        fpar[FP_DRAG_TOL] = FIT_DRAG_TOL
-        fpar[FP_DRAG_MAX_STEP] = FIT_DRAG_MAX_STEP
-        ipar[IP_CONTINUE] = 1
+        fpar, ipar = self.kernel_params(values, horizon + 1e-3)
         out = np.zeros((self.seg.times.size, 6))
         outcome = np.zeros(self.seg.count, np.int8)
         sample_batch(fpar, ipar, np.ascontiguousarray(state_to_true(states)), np.ascontiguousarray(times), self.seg.starts, out, outcome)
