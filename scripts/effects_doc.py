@@ -66,7 +66,9 @@ test. `speed_restitution` (restitution that falls with the impact speed) is one:
    with `slot="FP_KSR"`, a slot of the kernel's `fpar` vector that `pack_params` fills from the
    config (an `IP_*` slot name puts a choice in `ipar`, as its index in `choices`; a key whose
    allowed range depends on the die takes `check=`). `Param(name, unit, config key, fit bounds,
-   null value, start values, typical size)` is what a fit frees.
+   null value, start values, typical size)` is what a fit frees; the fit writes its value
+   straight into the key's slot (`physics.params.KeyWriter`), so a fitted key needs a slot, or,
+   like inertia's, a place among the slots `pack_params` derives from others.
 2. **The kernel lines.** The slot is a module-level constant of `dice_sweep.physics.params`,
    imported by name (numba compiles it as a constant). `speed_restitution` acts in one line of
    `dice_sweep/physics/impact.py`:
