@@ -344,8 +344,7 @@ def fit_command(data, config_path, rate, angle, effects_text, json_path, png_dir
     \b
     Example: dice-sweep fit drops.csv --config configs/square_drops.toml --effects corner_impulse --json fit.json
     """
-    from dice_sweep.app.measured import run_fit
-    from dice_sweep.measured.report import parse_effects
+    from dice_sweep.app.measured import parse_effects, run_fit
 
     _compile_notice()
     result = run_fit(data, _load(config_path, ()), effects=parse_effects(effects_text), rate=rate, angle=angle,
@@ -382,13 +381,13 @@ def diagnose(data, config_path, rate, angle, json_path, md_path, png_dir, quiet)
 
 
 def _parse_noise(ctx, param, text):
-    from dice_sweep.measured.simulate import parse_noise
+    from dice_sweep.app.simulate import parse_noise
 
     return parse_noise(text)
 
 
 def _parse_ranges(ctx, param, texts):
-    from dice_sweep.measured.simulate import parse_range
+    from dice_sweep.app.simulate import parse_range
 
     return dict(parse_range(text) for text in texts)
 
@@ -431,7 +430,7 @@ def simulate_drops_command(config, out_path, tracks, seed, rate, noise, drop_pro
     Example: dice-sweep simulate-drops configs/square_drops.toml -o drops.csv --tracks 40 --seed 1
     """
     _fast_kernel_start()
-    from dice_sweep.measured.simulate import run_simulate_drops
+    from dice_sweep.app.simulate import run_simulate_drops
 
     drops = run_simulate_drops(_load(config, overrides), out_path, tracks, seed=seed, rate=rate, noise=noise,
                                drop_prob=drop_prob, glitch_prob=glitch_prob, duration=duration, initial=initial,

@@ -72,14 +72,14 @@ def inflation_scan(args, fit, factors=SCAN):
     the mean on the selection tracks for each f, and on the held-out tracks at the best one."""
     from dice_sweep.app.forecast import read_fit_file
     from dice_sweep.config import load_config
-    from dice_sweep.measured import diagnose as loop
     from dice_sweep.measured import forecast as fc
+    from dice_sweep.measured.noise import tracking_noise
     from dice_sweep.measured.tracks import load_tracks
 
     cfg = load_config(CONFIG)
     source = read_fit_file(fit, cfg)
     tracks = load_tracks(args.data, sides=cfg.die.sides, circumradius=cfg.die.circumradius, angle="auto")
-    table, noise, sigma = loop.tracking_noise(tracks, cfg)
+    table, noise, sigma = tracking_noise(tracks, cfg)
     select_set, confirm_set = tracks.split(source.confirm_fraction, source.seed)
     observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in tracks.tracks}
     spec = source.spec(cfg)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from dice_sweep.config import load_config
-from dice_sweep.measured.diagnose import table_height
+from dice_sweep.measured.noise import table_height
 from dice_sweep.measured.flights import find_flights
 from dice_sweep.measured.tracks import load_tracks
 

@@ -1,5 +1,5 @@
 """Parametric bootstrap against the bootstrap over tracks and the first-order noise covariance
-(diagnose.noise_covariance) on one set of drops from the independent generator
+(reduced.noise_covariance) on one set of drops from the independent generator
 (docs/dev/measured_intervals.md, issue 14): fit the true model, simulate the fitted model's poses
 at the fitted states, add the measured tracking noise (one draw per frame: a frame is a row of
 its flight's segment and of the segment before), refit warm, and compare the spreads.
@@ -15,7 +15,9 @@ from pathlib import Path
 import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from dice_sweep.config import parse_config
-from dice_sweep.measured import fit as shooting, diagnose as loop
+from dice_sweep.measured import fit as shooting, reduced
+from dice_sweep.measured.noise import tracking_noise
+from dice_sweep.measured.split import CONFIRM_FRACTION
 from dice_sweep.measured.tracks import load_tracks
 from tests.measured.cases import DECLARED_RIGID, NOISE, TRUE_COEFFICIENTS
 from tests.measured.independent import Truth, simulate_drops, write_csv
@@ -26,16 +28,16 @@ seed = int(sys.argv[1]); n = int(sys.argv[2])
 path = folder / f"d{seed}.csv"
 write_csv(path, simulate_drops(truth, 90, 100 + seed, rate=500.0, noise=NOISE, drop_prob=0.01, glitch_prob=0.002))
 ts = load_tracks(path, sides=cfg.die.sides, circumradius=cfg.die.circumradius)
-table, noise, sigma = loop.tracking_noise(ts, cfg)
-sel, conf = ts.split(loop.CONFIRM_FRACTION, seed)
+table, noise, sigma = tracking_noise(ts, cfg)
+sel, conf = ts.split(CONFIRM_FRACTION, seed)
 select = shooting.prepare_tracks(sel, cfg, noise=sigma, table=table)
 seg = shooting.Segments(select, cfg.world.g)
 spec = shooting.ModelSpec.of(cfg)
 fit = shooting.fit_spec(cfg, spec, seg)
-lin = shooting.linearise(cfg, fit, seg); red = loop._reduce(lin, seg)
-draws = loop.bootstrap_params(red, seg, list(fit.free), fit.params, cfg, np.random.default_rng(seed))
+lin = shooting.linearise(cfg, fit, seg); red = reduced.reduce(lin, seg)
+draws = reduced.bootstrap_params(red, seg, list(fit.free), fit.params, cfg, np.random.default_rng(seed))
 sigmas = (sigma[0], sigma[1], cfg.die.circumradius * sigma[2])
-first_order = np.sqrt(np.diag(loop.noise_covariance(red, seg, sigmas)))
+first_order = np.sqrt(np.diag(reduced.noise_covariance(red, seg, sigmas)))
 print("fit friction", fit.params["friction"], "track-bootstrap sd", draws[:, 2].std(), "sigma", sigma, flush=True)
 model = shooting.ShootingModel(cfg, spec, seg)
 clean, _ = model.simulate(fit.params, fit.states)

@@ -188,7 +188,7 @@ def test_docs_tables_are_regenerated_from_the_registry():
 
 
 def test_every_signature_is_measured_by_the_diagnosis():
-    from dice_sweep.measured.diagnose import SIGNATURES
+    from dice_sweep.measured.signatures import SIGNATURES
 
     for entry in effects.EFFECTS:
         assert entry.signature in SIGNATURES, entry.name

@@ -5,18 +5,14 @@ pictures are dice_sweep.plotting's.
 
 from pathlib import Path
 
-import numpy as np
-
-from dice_sweep import effects as registry
-from dice_sweep.errors import DiceSweepError
-from dice_sweep.executor import default_workers
 from dice_sweep.measured import diagnose as loop
-from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.calibrate import CalibrationResult, calibrate
-from dice_sweep.measured.report import jsonable, markdown_report, residual_by_bounce, residual_curves
+from dice_sweep.measured.report import jsonable, markdown_report, parse_effects, residual_curves
 from dice_sweep.measured.tracks import load_tracks
 from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
 from dice_sweep.plotting import image_formats, plot_calibration, plot_residual_curves
+
+__all__ = ["run_calibrate", "run_fit", "run_diagnose", "parse_effects"]  # fit's --effects parser too
 
 
 def _load(data_path, cfg, rate, angle, gaps="auto"):
@@ -47,51 +43,13 @@ def _residual_pictures(residuals, prepared, segments, png_dir):
 def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=None, png_dir=None, seed=0):
     """Fit the declared model plus ``effects`` on the selection tracks (multiple shooting),
     with 95 % intervals (bootstrap over tracks and the tracking noise's share), and score it on
-    the confirmation tracks."""
+    the confirmation tracks (:func:`dice_sweep.measured.diagnose.fit_report`)."""
     check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
-    trackset = _load(data_path, cfg, rate, angle)
-    table, noise, sigma = loop.tracking_noise(trackset, cfg)
-    select_set, confirm_set = trackset.split(loop.CONFIRM_FRACTION, seed)
-    select = shooting.prepare_tracks(select_set, cfg, noise=sigma, table=table)
-    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma, table=table)
-    if len(select) < loop.MIN_TRACKS or not confirm:
-        raise DiceSweepError(f"{data_path}: tracks: {len(select)} fitting and {len(confirm)} scoring tracks have a first free flight "
-                             f"of {shooting.MIN_FLIGHT_FRAMES} frames or more (allowed: at least {loop.MIN_TRACKS} and 1)")
-    rng = np.random.default_rng(seed)
-    seg_select = shooting.Segments(select, cfg.world.g)
-    seg_confirm = shooting.Segments(confirm, cfg.world.g)
-    declared = registry.declared_effects(cfg)
-    extra = tuple(e for e in effects if e not in declared)
-    spec = shooting.ModelSpec.of(cfg, extra)
-    fit, starts = loop.fit_from_starts(cfg, spec, seg_select, select_set, workers=default_workers())
-    lin = shooting.linearise(cfg, fit, seg_select)
-    red = loop._reduce(lin, seg_select)
-    draws, params = loop.parameter_intervals(fit, red, seg_select, cfg, rng, loop.residual_sigmas(noise, cfg))
-    e_train = shooting.track_errors(seg_select, lin.residual)
-    e_test, residual_test = loop._confirm(cfg, fit, seg_confirm)
-    result = {
-        "metric": loop.METRIC,
-        "model": cfg.contact.model if "corner_impulse" not in extra else "rigid",
-        "effects": list(declared) + list(extra),
-        "params": params,
-        "train_error": shooting.rms(e_train),
-        "test_error": shooting.rms(e_test),
-        "ci95": loop.bootstrap_rms(e_test, rng),
-        "noise_floor": noise["pose"],
-        "train_tracks": len(select),
-        "test_tracks": len(confirm),
-        "converged": fit.converged,
-        "starts": starts,
-        "angle_reading": trackset.angle_note,
-        "glitch_frames": trackset.glitch_count,
-        "data": {"path": str(data_path)},
-        "bootstrap_draws": loop.bootstrap_record(fit.free, draws),
-        **loop.fit_context(cfg, loop.CONFIRM_FRACTION, seed),
-    }
+    result, split, residual_test = loop.fit_report(_load(data_path, cfg, rate, angle), cfg, effects=effects, seed=seed)
     if json_path:
         write_json(json_path, jsonable(result))
     if png_dir:
-        _residual_pictures({"fit": residual_test}, confirm, seg_confirm, Path(png_dir))
+        _residual_pictures({"fit": residual_test}, split.confirm, split.seg_confirm, Path(png_dir))
     return result
 
 
@@ -101,7 +59,6 @@ def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md
     trackset = _load(data_path, cfg, rate, angle)
     report = loop.diagnose(trackset, cfg, log=log, angle_reading=f"--angle {angle}: {trackset.angle_note}", **options)
     fits = report.pop("_fits")
-    report["by_bounce"], report["by_tilt"] = residual_by_bounce(cfg, fits)
     if png_dir:
         _, seg_confirm = fits["segments"]
         _, confirm = fits["prepared"]

@@ -27,10 +27,16 @@ The steps (docs/measured.md states them for users):
    prediction crosses a near-flat landing diverge chaotically whatever the model; the RMS over
    tracks is reported beside it), ``improved`` when effects were added but it is still above, ``unexplained``
    when nothing was added and it is above; then the residual signatures that remain are listed.
+
+The loop is this module; its pieces have their own: :mod:`~dice_sweep.measured.split` (the
+tracks, step 1), :mod:`~dice_sweep.measured.fit` (step 2), :mod:`~dice_sweep.measured.reduced`
+(the one-step refits of steps 3 and 4 and the intervals), :mod:`~dice_sweep.measured.stats`
+(the rank test, the Sidak bound, bootstrap intervals), :mod:`~dice_sweep.measured.signatures`
+and :mod:`~dice_sweep.measured.noise` (the noise floor). :func:`fit_report` is the ``fit``
+command: one model, fitted and scored the same way, no candidates.
 """
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -40,264 +46,25 @@ from dice_sweep.executor import default_workers, ordered_map
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.calibrate import calibrate
 from dice_sweep.measured.fit import relative_gain as relative_fall
-from dice_sweep.measured.flights import estimate_noise
-from dice_sweep.measured.tracks import _split_hash
+from dice_sweep.measured.noise import residual_sigmas
+from dice_sweep.measured.reduced import bootstrap_record, cv_errors, effect_away_from_null, parameter_intervals, project, reduce
+from dice_sweep.measured.report import residual_by_bounce
+from dice_sweep.measured.signatures import remaining_signatures, residual_signatures
+from dice_sweep.measured.split import CONFIRM_FRACTION, assign_folds, fit_context, split_tracks
+from dice_sweep.measured.stats import BOOTSTRAP, LEVEL, bootstrap_rms, excess_share, median_interval, sidak_bound, signed_rank_z
 
-CONFIRM_FRACTION = 0.3
 FOLDS = 5
-BOOTSTRAP = 1000
 NULL_SIMULATIONS = 200
-LEVEL = 0.05
 EXPLAINED_FACTOR = 1.5
 MIN_EXCESS_SHARE = 0.1
-MIN_TRACKS = 8  # fewer usable selection tracks cannot test anything
 MAX_CHAIN = 4
 POLISH_ITERATIONS = 150  # the baseline and each accepted model are fitted to convergence
-WOBBLE_MIN_TURN = math.pi  # rad a flight must turn for a wobble at the spin angle to be seen
 
 METRIC = (
     "per track, RMS over its described frames of sqrt(dx^2 + dy^2 + (R dphi)^2) (m) between tracked and simulated poses; "
     "each flight has its own fitted state and is simulated through the next impact over the next flight (multiple shooting); "
     "a set's error is the RMS over its tracks"
 )
-
-
-def _folds(prepared, folds, seed):
-    """Fold index (0..folds-1) of each track, balanced, fixed by the trajectory ids."""
-    order = sorted(range(len(prepared)), key=lambda i: _split_hash(f"fold:{seed}", prepared[i].traj))
-    fold = np.zeros(len(prepared), dtype=np.int64)
-    for rank, i in enumerate(order):
-        fold[i] = rank % folds
-    return fold
-
-
-# --- the reduced (states eliminated) problem of a fit --------------------------------------------
-#
-# With each segment's state refitted to first order, a parameter step ``dp`` moves a row's
-# residual r to r~ + C dp, where r~ = r - B x (x = inv(Hss) gs: the states alone refitted) and
-# C = A - B X (X = inv(Hss) Hsp) the reduced Jacobian; A, B are the row's Jacobians in the
-# parameters and in its segment's state, H and g the weighted normal blocks. A track's squared
-# error after a step is then q + 2 dp.v + dp^T U dp, with q = sum |r~|^2, v = sum C^T r~ and
-# U = sum C^T C over its rows, all sums of per-segment blocks: nothing per row is needed once
-# the blocks are known, and everything is linear in r, so one residual or a batch of simulated
-# noise residuals (a trailing axis S) costs a product per segment.
-
-
-@dataclass
-class Reduced:
-    """The residual-independent pieces of a fit's reduced problem."""
-
-    lin: shooting.Linearisation
-    weight: np.ndarray  # (rows,) the weights of the refits
-    hss_inv: np.ndarray  # (segments, 6, 6) weighted
-    solved: np.ndarray  # (segments, 6, p): X
-    plain: tuple  # unweighted (hss, hsp) per segment: errors are unweighted RMS
-    M: np.ndarray  # (tracks, p, p): weighted reduced normal matrix (the refits)
-    U: np.ndarray  # (tracks, p, p): unweighted sum of C^T C (the errors)
-
-
-@dataclass
-class Projected:
-    """A residual (or a batch) on the reduced problem, per track: ``q`` (tracks, ...), ``v`` and
-    ``b`` (the weighted gradient of the refits), (tracks, p, ...)."""
-
-    q: np.ndarray
-    v: np.ndarray
-    b: np.ndarray
-
-
-def _jac(lin):
-    return np.concatenate([lin.jac_states, lin.jac_params], axis=2)
-
-
-def _by_track(values, segments):
-    """Sums over each track's segments (segments are grouped by track) -> (tracks, ...)."""
-    return shooting._segment_sums(values, segments.track_segment_starts)
-
-
-def _reduce(lin, segments, weight=None):
-    """The reduced pieces of a linearisation (weights default to the fit's)."""
-    weight = lin.weight if weight is None else weight
-    jac = _jac(lin)
-    unit = np.ones_like(weight)
-    hessian, _ = shooting.segment_products(jac, weight, lin.residual, segments.starts)
-    plain = hessian if np.array_equal(weight, unit) else shooting.segment_products(jac, unit, lin.residual, segments.starts)[0]
-    hss, hsp, hpp = hessian[:, :6, :6], hessian[:, :6, 6:], hessian[:, 6:, 6:]
-    inv = shooting._damped_inverse(hss, 0.0)
-    X = inv @ hsp
-    M = _by_track(hpp - hsp.transpose(0, 2, 1) @ X, segments)
-    uss, usp, upp = plain[:, :6, :6], plain[:, :6, 6:], plain[:, 6:, 6:]
-    cross = usp.transpose(0, 2, 1) @ X
-    U = _by_track(upp - cross - cross.transpose(0, 2, 1) + X.transpose(0, 2, 1) @ uss @ X, segments)
-    return Reduced(lin, weight, inv, X, (uss, usp), M, U)
-
-
-def _project(red, segments, residual=None, centre=True):
-    """A residual (rows, 3) or a batch (rows, 3, S), default the fit's own, on the reduced
-    problem (:class:`Projected`)."""
-    residual = red.lin.residual if residual is None else residual
-    single = residual.ndim == 2
-    residual = residual[:, :, None] if single else residual
-    jac = _jac(red.lin)
-    unit = np.ones_like(red.weight)
-    _, grad_w = shooting.segment_products(jac, red.weight, residual, segments.starts, hessian=False)
-    if np.array_equal(red.weight, unit):
-        grad_u = grad_w
-    else:
-        _, grad_u = shooting.segment_products(jac, unit, residual, segments.starts, hessian=False)
-    rr = shooting._segment_sums(np.sum(residual * residual, axis=1), segments.starts)  # (segments, S)
-    uss, usp = red.plain
-    Xt = red.solved.transpose(0, 2, 1)
-    x = red.hss_inv @ grad_w[:, :6]  # (segments, 6, S): the states' refit
-    b = grad_w[:, 6:] - Xt @ grad_w[:, :6]
-    gs_u, gp_u = grad_u[:, :6], grad_u[:, 6:]
-    q = rr - 2.0 * np.sum(x * gs_u, axis=1) + np.sum(x * (uss @ x), axis=1)
-    v = gp_u - usp.transpose(0, 2, 1) @ x - Xt @ gs_u + Xt @ (uss @ x)
-    q, v, b = _by_track(q, segments), _by_track(v, segments), _by_track(b, segments)
-    if centre:
-        # the fit is taken as the optimum: what is left of the gradient (a bound, a rough
-        # cost) is spread evenly, so refits and resamples move only by the tracks they drop
-        b = b - b.mean(axis=0)
-    if single:
-        q, v, b = q[:, 0], v[:, :, 0], b[:, :, 0]
-    return Projected(q, v, b)
-
-
-def _solve(M, b):
-    """-(M)^-1 b with a small ridge for directions the tracks do not pin (b: (p,) or (p, S))."""
-    p = M.shape[0]
-    if p == 0:
-        return np.zeros(b.shape)
-    ridge = 1e-9 * max(float(np.trace(M)) / p, 1e-30)
-    return -np.linalg.solve(M + ridge * np.eye(p), b)
-
-
-def _clip_step(values, names, step, cfg):
-    """Step on the parameters (p,) or (p, S) kept inside their bounds."""
-    base = np.array([values[n] for n in names], dtype=float).reshape((-1,) + (1,) * (np.ndim(step) - 1))
-    bounds = np.array([registry.param(n).bounds_of(cfg) for n in names], dtype=float).reshape((-1, 2) + (1,) * (np.ndim(step) - 1))
-    return np.clip(base + step, bounds[:, 0], bounds[:, 1]) - base
-
-
-def cv_errors(red, segments, fold, names, values, cfg, projected=None):
-    """Per-track held-out RMS errors (m), (tracks,) or (tracks, S) for a batch of residuals:
-    K-fold over tracks, each fold's refit one Newton step of the reduced problem, the held-out
-    tracks' states refitted to first order. ``projected``: from :func:`_project`, default the
-    fit's own residual."""
-    pr = _project(red, segments) if projected is None else projected
-    e2 = np.array(pr.q, dtype=float)
-    for k in np.unique(fold):
-        keep = fold != k
-        step = _clip_step(values, names, _solve(red.M[keep].sum(axis=0), pr.b[keep].sum(axis=0)), cfg)  # (p, ...)
-        held = fold == k
-        e2[held] += 2.0 * np.einsum("tp...,p...->t...", pr.v[held], step) + np.einsum("p...,tpr,r...->t...", step, red.U[held], step)
-    counts = np.diff(segments.track_starts).reshape((-1,) + (1,) * (e2.ndim - 1))
-    return np.sqrt(np.maximum(e2, 0.0) / np.maximum(counts, 1))
-
-
-def signed_rank_z(d):
-    """One-sided Wilcoxon signed-rank statistic (normal approximation, ties at mean ranks)
-    that the differences ``d`` are positive."""
-    from scipy.stats import rankdata
-
-    d = np.asarray(d, dtype=float)
-    d = d[np.isfinite(d) & (d != 0.0)]
-    n = d.size
-    if n == 0:
-        return 0.0
-    ranks = rankdata(np.abs(d))
-    w_plus = ranks[d > 0].sum()
-    mean = n * (n + 1) / 4.0
-    sd = math.sqrt(n * (n + 1) * (2 * n + 1) / 24.0)
-    return float((w_plus - mean) / sd)
-
-
-def bootstrap_params(red, segments, names, values, cfg, rng, draws=BOOTSTRAP):
-    """One-step bootstrap over tracks: (draws, p) parameter values."""
-    b = _project(red, segments).b
-    tracks, p = b.shape
-    counts = np.stack([np.bincount(rng.integers(0, tracks, tracks), minlength=tracks) for _ in range(draws)]).astype(float)
-    if p == 0:
-        return np.zeros((draws, 0))
-    M = np.einsum("dt,tij->dij", counts, red.M)
-    ridge = 1e-9 * np.maximum(np.einsum("dii->d", M) / p, 1e-30)
-    step = -np.linalg.solve(M + ridge[:, None, None] * np.eye(p), (counts @ b)[:, :, None])[:, :, 0]
-    step = _clip_step(values, names, step.T, cfg).T
-    return np.array([values[n] for n in names]) + step
-
-
-def noise_covariance(red, segments, sigmas):
-    """(p, p) covariance of the parameters from the tracking noise alone, to first order: each
-    frame's noise (``sigmas`` of x, y and R phi, m) moves the reduced gradient through every row
-    that measures the frame (its flight's segment and the one before, which predicts it), and a
-    step is -M^-1 times that gradient.
-
-    Why beside the bootstrap over tracks: on 48 sets from the independent generator the
-    bootstrap's friction intervals covered the truth 41 times, 43 with this beside them
-    (scripts/coverage_measured.py, docs/dev/measured_intervals.md)."""
-    lin = red.lin
-    p = lin.jac_params.shape[2]
-    if p == 0:
-        return np.zeros((0, 0))
-    # C = A - B X per row: the parameters' Jacobian with the row's segment state refitted
-    reduced_jac = lin.jac_params - lin.jac_states @ red.solved[segments.segment_rows]
-    per_frame = np.zeros((segments.frames, 3, p))
-    np.add.at(per_frame, segments.frame_rows, reduced_jac * red.weight[:, None, None])
-    per_frame *= np.asarray(sigmas, dtype=float)[None, :, None]
-    gradient_cov = np.einsum("fcp,fcq->pq", per_frame, per_frame)
-    inverse = _solve(red.M.sum(axis=0), -np.eye(p))
-    return inverse @ gradient_cov @ inverse.T
-
-
-def bootstrap_record(names, draws):
-    """A fit's bootstrap draws for its JSON (``bootstrap_draws``: ``forecast`` samples the
-    parameters from them, issue 18)."""
-    return {"names": list(names), "values": np.asarray(draws, dtype=float).reshape(-1, len(names)).tolist(),
-            "method": "one-step bootstrap over the selection tracks (docs/measured_method.md), one row per resample"}
-
-
-def fit_context(cfg, confirm_fraction, seed):
-    """The die and the split of a fit, for its JSON (``forecast`` checks the die and scores
-    the same confirmation tracks)."""
-    return {"die": {"sides": cfg.die.sides, "circumradius": cfg.die.circumradius},
-            "split": {"confirm_fraction": confirm_fraction, "seed": seed}}
-
-
-def _bootstrap_quantiles(values, statistic, rng, draws):
-    """2.5 % and 97.5 % quantiles of ``statistic`` over resamples of ``values`` (tracks)."""
-    stats = [statistic(values[rng.integers(0, values.size, values.size)]) for _ in range(draws)]
-    return [float(np.quantile(stats, 0.025)), float(np.quantile(stats, 0.975))]
-
-
-def _finite(values):
-    values = np.asarray(values, dtype=float)
-    return values[np.isfinite(values)]
-
-
-def bootstrap_rms(errors, rng, draws=BOOTSTRAP):
-    """95 % interval of the RMS over tracks of per-track errors, bootstrap over tracks."""
-    errors = _finite(errors)
-    if errors.size == 0:
-        return [math.nan, math.nan]
-    return [math.sqrt(q) for q in _bootstrap_quantiles(errors**2, np.mean, rng, draws)]
-
-
-def excess_share(e_current, e_candidate, floor):
-    """Share of the error above the noise floor that a candidate removes: median over tracks
-    of the fall of the squared error over the median squared excess (medians, because a few
-    tracks whose prediction crosses a near-flat landing diverge whatever the model)."""
-    excess = float(np.median(e_current**2)) - floor**2
-    if excess <= 0:
-        return 0.0
-    return float(np.median(e_current**2 - e_candidate**2)) / excess
-
-
-def median_interval(errors, rng, draws=BOOTSTRAP):
-    """Median over tracks of per-track errors and its 95 % interval (bootstrap over tracks)."""
-    errors = _finite(errors)
-    if errors.size == 0:
-        return math.nan, [math.nan, math.nan]
-    return float(np.median(errors)), _bootstrap_quantiles(errors, np.median, rng, draws)
 
 
 # --- the declared model ------------------------------------------------------------------------
@@ -434,199 +201,7 @@ def _at_a_bound_off_null(fit, effect_name, cfg):
     return False
 
 
-def _null_excluded(name, interval, cfg):
-    """Whether a 95 % interval excludes a parameter's null value (a null at infinity, as for
-    friction, is excluded when the interval stays below the upper fit bound)."""
-    entry = registry.param(name)
-    null = entry.null_value(cfg)
-    if not all(math.isfinite(v) for v in interval):
-        return False  # no interval (a parameter the tracks say nothing about) excludes nothing
-    if math.isinf(null):
-        return interval[1] < entry.bounds_of(cfg)[1] * (1 - 1e-6)
-    return not (interval[0] <= null <= interval[1])
-
-
-def _effect_away_from_null(effect_name, params, cfg):
-    """Whether an effect's 95 % intervals (``params`` as :func:`_describe_params` gives them)
-    put it away from its null: for a vector effect (com_offset) one component is enough; an
-    effect without parameters (a switch, corner_impulse) always is."""
-    own = [p.name for p in registry.effect(effect_name).params]
-    return not own or any(_null_excluded(n, params[n]["ci95"], cfg) for n in own)
-
-
-Z95 = 1.959963984540054  # two-sided 95 % normal quantile
-TOP_TRACK_SHARE = 0.5  # a parameter whose information comes this much from one track is flagged
-
-
-def _describe_params(fit, draws, cfg, red=None, noise_cov=None):
-    """Value, 95 % interval, unit, bound and null of each fitted parameter; with ``red``, the
-    share of its information (diagonal of the reduced normal matrix) from the most informative
-    track, flagged above TOP_TRACK_SHARE: one track then decides the value (seen when a
-    prediction passes near a discontinuity) and the interval is not to be trusted; a parameter
-    with no information at all gets no interval (NaN) and ``identified`` false.
-
-    The interval (``ci95``) spans both the bootstrap over tracks (``ci95_tracks``: what differs
-    from track to track, model error included) and, with ``noise_cov`` (:func:`noise_covariance`),
-    value +- 1.96 sd of the tracking noise's share (``sd_noise``), kept inside the fit bounds: on
-    the independent generator's drops the bootstrap alone was too narrow for friction
-    (docs/dev/measured_intervals.md)."""
-    out = {}
-    for k, name in enumerate(fit.free):
-        entry = registry.param(name)
-        value = float(fit.params[name])
-        tracks = [float(np.quantile(draws[:, k], 0.025)), float(np.quantile(draws[:, k], 0.975))] if draws is not None else [math.nan, math.nan]
-        interval = list(tracks)
-        out[name] = {"value": value, "ci95": interval, "ci95_tracks": tracks, "unit": entry.unit,
-                     "at_bound": fit.at_bound.get(name, False), "null": entry.null_value(cfg)}
-        if noise_cov is not None:
-            sd = float(math.sqrt(max(noise_cov[k, k], 0.0)))
-            low, high = entry.bounds_of(cfg)
-            out[name]["sd_noise"] = sd
-            out[name]["ci95"] = [max(min(tracks[0], value - Z95 * sd), low), min(max(tracks[1], value + Z95 * sd), high)]
-        if red is not None:
-            info = red.M[:, k, k]
-            share = float(info.max() / info.sum()) if info.sum() > 0 else math.nan
-            out[name]["top_track_share"] = share
-            out[name]["one_track_decides"] = bool(share > TOP_TRACK_SHARE)
-            # No track's residual moves with it (e.g. a contact time shorter than every
-            # landing's delay): the bootstrap would give a zero-width interval, not a measurement.
-            out[name]["identified"] = bool(info.sum() > 0)
-            if not out[name]["identified"]:
-                out[name]["ci95"] = out[name]["ci95_tracks"] = [math.nan, math.nan]
-                out[name]["sd_noise"] = math.nan
-    return out
-
-
-def parameter_intervals(fit, red, segments, cfg, rng, sigmas, draws=BOOTSTRAP):
-    """A fit's bootstrap draws over tracks and its described parameters (:func:`_describe_params`
-    with the noise covariance for ``sigmas`` of x, y and R phi, m)."""
-    values = bootstrap_params(red, segments, list(fit.free), fit.params, cfg, rng, draws)
-    return values, _describe_params(fit, values, cfg, red, noise_covariance(red, segments, sigmas))
-
-
-# --- residual signatures ---------------------------------------------------------------------
-
-SIGNATURES = {
-    # name: (unit, what it measures, registry signature names it points to)
-    "flight_vertical_curvature": ("m/s^2", "extra vertical acceleration left in the flights the states were fitted to"),
-    "flight_deceleration": ("m/s^2", "deceleration along the motion left in the flights"),
-    "flight_spin_change": ("rad/s^2", "angular acceleration left in the flights (no effect of the library changes the spin in flight)"),
-    "flight_wobble_at_spin": ("m", "amplitude of the flights' residual of the centre at the spin angle"),
-    "impact_prediction": ("m", "RMS error of the frames predicted through an impact, over the flight frames' error"),
-}
-
-
-def residual_signatures(prepared, segments, residual, radius):
-    """Structure left in the residual of a fit, track by track; each value with a 95 % interval
-    (bootstrap over tracks) and what it points to in the effect registry."""
-    per_track = {name: [] for name in SIGNATURES}
-    for i in range(segments.tracks):
-        curv, decel, spin, wobble = [], [], [], []
-        for j in np.flatnonzero(segments.track == i):
-            rows = np.arange(segments.starts[j], segments.starts[j + 1])
-            own = rows[~segments.predicted[rows]]
-            if own.size < 6:
-                continue
-            t = segments.times[own]
-            d = -residual[own]  # tracked minus simulated
-            pose = segments.measured[own]
-            quad = np.polyfit(t, d, 2)  # (3, 3): highest power first
-            curv.append(2 * quad[0, 1])
-            v = np.polyfit(t, pose[:, :2], 1)[0]
-            speed = math.hypot(*v)
-            if speed > 0:
-                decel.append(-2 * (quad[0, 0] * v[0] + quad[0, 1] * v[1]) / speed)
-            spin.append(2 * quad[0, 2] / radius)
-            if np.ptp(pose[:, 2]) > WOBBLE_MIN_TURN:  # else cos, sin of phi are near 1 and t
-                basis = np.column_stack([np.ones_like(t), t, np.cos(pose[:, 2]), np.sin(pose[:, 2])])
-                coef = np.linalg.lstsq(basis, d[:, 0], rcond=None)[0]
-                wobble.append(math.hypot(coef[2], coef[3]))
-        rows = np.flatnonzero(segments.track_rows == i)
-        pred = rows[segments.predicted[rows]]
-        own = rows[~segments.predicted[rows]]
-        for name, values in (("flight_vertical_curvature", curv), ("flight_deceleration", decel), ("flight_spin_change", spin),
-                             ("flight_wobble_at_spin", wobble)):
-            if values:
-                per_track[name].append(float(np.median(values)))
-        if pred.size and own.size:
-            e_pred = math.sqrt(np.mean(np.sum(residual[pred] ** 2, axis=1)))
-            e_own = math.sqrt(np.mean(np.sum(residual[own] ** 2, axis=1)))
-            per_track["impact_prediction"].append(e_pred - e_own)
-    rng = np.random.default_rng(0)
-    out = []
-    for name, values in per_track.items():
-        values = np.array(values)
-        unit, note = SIGNATURES[name]
-        points = [e.name for e in registry.EFFECTS if e.signature == name]
-        if values.size < 3:
-            out.append({"signature": name, "value": math.nan, "ci95": [math.nan, math.nan], "unit": unit, "points_to": points, "note": note})
-            continue
-        out.append({"signature": name, "value": float(np.median(values)), "ci95": _bootstrap_quantiles(values, np.median, rng, 500),
-                    "unit": unit, "points_to": points or ["none in the library"], "note": note, "tracks": int(values.size)})
-    return out
-
-
-def _remaining(signatures, floor):
-    """Signatures left in the residual: a signed one whose interval excludes 0, an amplitude
-    (wobble) or the impact prediction's extra error whose interval lies above half the floor."""
-    left = []
-    for s in signatures:
-        if not np.isfinite(s["value"]):
-            continue
-        if s["signature"] in ("impact_prediction", "flight_wobble_at_spin"):
-            if s["ci95"][0] > 0.5 * floor:
-                left.append(s["signature"])
-        elif not (s["ci95"][0] <= 0.0 <= s["ci95"][1]):
-            left.append(s["signature"])
-    return left
-
-
 # --- the loop --------------------------------------------------------------------------------
-
-
-def table_height(trackset, cfg):
-    """Height of the table in the file (m): the median lowest-corner height of the dice that
-    end at rest, 0 when none does. Flights are cut where a corner meets this level."""
-    from dice_sweep.measured.impacts import rest_pose, table_level
-
-    rests = [rest_pose(tr.x, tr.y, tr.phi, tr.usable, cfg.die.circumradius, tr.t) for tr in trackset.tracks]
-    return table_level([p for p in rests if p is not None], sides=cfg.die.sides, circumradius=cfg.die.circumradius)
-
-
-def noise_floor(trackset, cfg, table=0.0):
-    """Tracking noise from the free flights (bootstrap over tracks): a dict with the sigmas of
-    x, y (m) and phi (rad), the pose noise floor sqrt(sx^2 + sy^2 + (R sphi)^2) (m) and their
-    95 % intervals."""
-    est = estimate_noise(trackset.tracks, sides=cfg.die.sides, circumradius=cfg.die.circumradius, g=cfg.world.g, table=table)
-    if not math.isfinite(est.pose):
-        raise DiceSweepError(f"{trackset.path}: tracks: no free flight long enough to measure the tracking noise "
-                             f"(allowed: tracks with flights of several frames)")
-    return {"sigma_x": float(est.sigma[0]), "sigma_y": float(est.sigma[1]), "sigma_phi": float(est.sigma[2]),
-            "sigma_ci95": [list(map(float, row)) for row in est.interval], "pose": float(est.pose),
-            "pose_ci95": list(est.pose_interval), "tracks": est.tracks, "flights": est.flights, "frames": est.frames,
-            "method": "pooled residuals of quadratic fits in t of x, y and R phi over the free flights (frames near the table "
-                      "left out), degrees of freedom corrected; 95 % intervals by bootstrap over tracks"}
-
-
-def tracking_noise(trackset, cfg):
-    """(table height (m), :func:`noise_floor`'s dict, sigmas of x, y (m) and phi (rad) as an
-    array): what every command on tracked drops measures before it fits."""
-    table = table_height(trackset, cfg)
-    noise = noise_floor(trackset, cfg, table)
-    return table, noise, np.array([noise["sigma_x"], noise["sigma_y"], noise["sigma_phi"]])
-
-
-def residual_sigmas(noise, cfg):
-    """Sigmas of the residual's columns x, y and R phi (m) from :func:`noise_floor`'s dict."""
-    return (noise["sigma_x"], noise["sigma_y"], cfg.die.circumradius * noise["sigma_phi"])
-
-
-def sidak_bound(comparisons):
-    """One-sided normal quantile that keeps the chance of any of ``comparisons`` passing by
-    chance at LEVEL."""
-    from statistics import NormalDist
-
-    return NormalDist().inv_cdf((1.0 - LEVEL) ** (1.0 / max(comparisons, 1)))
 
 
 NULL_KIND = "gauss"
@@ -637,19 +212,19 @@ def _null_threshold(cfg, current, lin_current, candidates_lin, segments, fold, s
     """95 % quantile of the largest signed-rank statistic over the candidates in data simulated
     from the current model (its linearisation) with the tracking noise, and the Sidak bound.
     The simulated residual is the noise itself (the model is true in the simulation), so each
-    simulation is a few linear maps of it (:func:`_project`), a batch at a time."""
+    simulation is a few linear maps of it (:func:`~dice_sweep.measured.reduced.project`), a batch at a time."""
     sidak = sidak_bound(len(candidates_lin))
     usable = [(lin, names) for name, lin, names in candidates_lin if lin is not None]
     if not usable or simulations <= 0:
         return sidak, sidak, 0
     rows = lin_current.residual.shape[0]
     weight = lin_current.weight if NULL_KIND == "signs" else np.ones(rows)
-    base = _reduce(lin_current, segments, weight=weight)
+    base = reduce(lin_current, segments, weight=weight)
     reduced = []
     for lin, names in usable:
         values = dict(current.params)
         values.update({n: registry.param(n).null_value(cfg) for n in names if n not in values})
-        reduced.append((_reduce(lin, segments, weight=weight), names, values))
+        reduced.append((reduce(lin, segments, weight=weight), names, values))
     best = []
     for first in range(0, simulations, NULL_BATCH):
         size = min(NULL_BATCH, simulations - first)
@@ -659,10 +234,10 @@ def _null_threshold(cfg, current, lin_current, candidates_lin, segments, fold, s
         else:
             # one draw per frame: a flight's frames are also rows of the segment before
             noise = (rng.normal(size=(segments.frames, 3, size)) * np.asarray(sigmas)[None, :, None])[segments.frame_rows]
-        e_base = cv_errors(base, segments, fold, list(current.free), current.params, cfg, _project(base, segments, noise, centre=False))
+        e_base = cv_errors(base, segments, fold, list(current.free), current.params, cfg, project(base, segments, noise, centre=False))
         top = np.full(size, -np.inf)
         for red, names, values in reduced:
-            e_cand = cv_errors(red, segments, fold, names, values, cfg, _project(red, segments, noise, centre=False))
+            e_cand = cv_errors(red, segments, fold, names, values, cfg, project(red, segments, noise, centre=False))
             top = np.maximum(top, [signed_rank_z(e_base[:, s] ** 2 - e_cand[:, s] ** 2) for s in range(size)])
         best.extend(top)
     simulated = float(np.quantile(best, 1.0 - LEVEL))
@@ -689,11 +264,11 @@ def _null_linearisation(cfg, current, effect_name, segments):
 def _held_out(cfg, fit, segments, fold):
     """A fit's linearisation, its reduced pieces and its per-track held-out errors."""
     lin = shooting.linearise(cfg, fit, segments)
-    red = _reduce(lin, segments)
+    red = reduce(lin, segments)
     return lin, red, cv_errors(red, segments, fold, list(fit.free), fit.params, cfg)
 
 
-def _confirm(cfg, fit, segments):
+def confirmation_errors(cfg, fit, segments):
     """Per-track errors on confirmation tracks (states fitted, parameters held) and the
     residual rows (m) they come from."""
     held = shooting.fit_spec(cfg, fit.spec, segments, start=fit.params, fixed=True)
@@ -755,7 +330,7 @@ def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, sig
     intervals, null and bounds."""
     _, cand_red, e_cand = _held_out(cfg, cand, segments, fold)
     _, params = parameter_intervals(cand, cand_red, segments, cfg, rng, sigmas, bootstrap)
-    excluded = all(_effect_away_from_null(name, params, cfg) for name in names)
+    excluded = all(effect_away_from_null(name, params, cfg) for name in names)
     new = [p.name for name in names for p in registry.effect(name).params]
     return {"effect": "+".join(names), "effects": list(names), "fit": cand, "red": cand_red, "errors": e_cand,
             "z": signed_rank_z(e_current**2 - e_cand**2), "params": params, "null_excluded": bool(excluded),
@@ -851,19 +426,11 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     say = log or (lambda message: None)
     rng = np.random.default_rng(seed)
     workers = default_workers() if workers is None else workers
-    table, noise, sigma = tracking_noise(trackset, cfg)
-    select_set, confirm_set = trackset.split(confirm_fraction, seed)
-    select = shooting.prepare_tracks(select_set, cfg, noise=sigma, table=table)
-    confirm = shooting.prepare_tracks(confirm_set, cfg, noise=sigma, table=table)
-    if len(select) < MIN_TRACKS or not confirm:
-        raise DiceSweepError(
-            f"{trackset.path}: tracks: {len(select)} selection and {len(confirm)} confirmation tracks have a first free flight of "
-            f"{shooting.MIN_FLIGHT_FRAMES} frames or more (allowed: at least {MIN_TRACKS} and 1; {len(trackset.tracks)} tracks in the file)"
-        )
+    split = split_tracks(trackset, cfg, confirm_fraction, seed)
+    table, noise, select_set = split.table, split.noise, split.select_set
+    select, confirm, seg_select, seg_confirm = split.select, split.confirm, split.seg_select, split.seg_confirm
     floor = noise["pose"]
-    seg_select = shooting.Segments(select, cfg.world.g)
-    seg_confirm = shooting.Segments(confirm, cfg.world.g)
-    fold = _folds(select, folds, seed)
+    fold = assign_folds(select, folds, seed)
     declared = registry.declared_effects(cfg)
     pool = [e for e in (candidates or registry.names()) if e not in declared]
     say(f"{len(select)} selection and {len(confirm)} confirmation tracks ({seg_select.count} + {seg_confirm.count} flights); "
@@ -945,8 +512,8 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         say(f"added {best['effect']}: held-out {shooting.rms(e_current) * 1000:.3f} mm")
 
     # before and after on tracks that took no part in choosing
-    e_before, residual_before = _confirm(cfg, baseline, seg_confirm)
-    e_after, residual_after = _confirm(cfg, current, seg_confirm)
+    e_before, residual_before = confirmation_errors(cfg, baseline, seg_confirm)
+    e_after, residual_after = confirmation_errors(cfg, current, seg_confirm)
     draws_before, described_before = parameter_intervals(baseline, baseline_red, seg_select, cfg, rng, sigmas, bootstrap)
     draws_after, described = parameter_intervals(current, red, seg_select, cfg, rng, sigmas, bootstrap)
     # an effect is named by the final model, not by the model it was added to: a later round's
@@ -955,7 +522,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     # significant (_weakest_step); it is taken out, the rest refitted, and the checks repeated
     removed = {}  # name -> why
     while True:
-        null = [name for name in current.spec.effects if not _effect_away_from_null(name, described, cfg)]
+        null = [name for name in current.spec.effects if not effect_away_from_null(name, described, cfg)]
         if null:
             removed.update({name: NULL_REASON for name in null})
             say(f"removed {', '.join(null)}: the final model's 95 % interval holds its null value")
@@ -971,7 +538,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
             removed.update({name: reason for name in step["effects"] if name not in removed})
             say(f"removed {step['effect']}: {reason}")
         lin, red, e_current = _held_out(cfg, current, seg_select, fold)
-        e_after, residual_after = _confirm(cfg, current, seg_confirm)
+        e_after, residual_after = confirmation_errors(cfg, current, seg_confirm)
         draws_after, described = parameter_intervals(current, red, seg_select, cfg, rng, sigmas, bootstrap)
     for step in chain:
         step["removed"] = [name for name in step["effects"] if name in removed]
@@ -990,7 +557,7 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
         "verdict_rule": (f"explained: median per-track error on confirmation tracks <= {EXPLAINED_FACTOR} x noise_floor; improved: "
                          "effects added, still above; unexplained: nothing added, above"),
         "signatures": signatures,
-        "signatures_remaining": _remaining(signatures, floor) if verdict != "explained" else [],
+        "signatures_remaining": remaining_signatures(signatures, floor) if verdict != "explained" else [],
         "effects_added": [name for step in chain for name in step["effects"] if name not in removed],
         "effects_removed": [{"effect": name, "reason": why} for name, why in removed.items()],
         "equivalent_effects": {name: list(registry.effect(name).equivalent) for step in chain for name in step["effects"]
@@ -1031,4 +598,53 @@ def diagnose(trackset, cfg, *, confirm_fraction=CONFIRM_FRACTION, seed=0, folds=
     report["params"] = params
     report["bootstrap_draws"] = bootstrap_record(current.free, draws_after)
     report.update(fit_context(cfg, confirm_fraction, seed))
+    report["by_bounce"], report["by_tilt"] = residual_by_bounce(cfg, report["_fits"])
     return report
+
+
+def fit_report(trackset, cfg, *, effects=(), seed=0, workers=None):
+    """The ``fit`` command's work: the declared model plus ``effects`` fitted on the selection
+    tracks from its starts (:func:`fit_from_starts`), with 95 % intervals (bootstrap over tracks
+    and the tracking noise's share), scored on the confirmation tracks.
+
+    Returns
+    -------
+    result : dict
+        The JSON contract of ``dice-sweep fit --json`` (docs/measured_method.md).
+    split : Split
+        The tracks, as :func:`dice_sweep.measured.split.split_tracks` made them ready.
+    residual : numpy.ndarray
+        (rows, 3) residual (m) of the confirmation tracks' segments (the residual picture).
+    """
+    split = split_tracks(trackset, cfg, CONFIRM_FRACTION, seed, roles=("fitting", "scoring"))
+    rng = np.random.default_rng(seed)
+    declared = registry.declared_effects(cfg)
+    extra = tuple(e for e in effects if e not in declared)
+    spec = shooting.ModelSpec.of(cfg, extra)
+    workers = default_workers() if workers is None else workers
+    fit, starts = fit_from_starts(cfg, spec, split.seg_select, split.select_set, workers=workers)
+    lin = shooting.linearise(cfg, fit, split.seg_select)
+    red = reduce(lin, split.seg_select)
+    draws, params = parameter_intervals(fit, red, split.seg_select, cfg, rng, residual_sigmas(split.noise, cfg))
+    e_train = shooting.track_errors(split.seg_select, lin.residual)
+    e_test, residual_test = confirmation_errors(cfg, fit, split.seg_confirm)
+    result = {
+        "metric": METRIC,
+        "model": cfg.contact.model if "corner_impulse" not in extra else "rigid",
+        "effects": list(declared) + list(extra),
+        "params": params,
+        "train_error": shooting.rms(e_train),
+        "test_error": shooting.rms(e_test),
+        "ci95": bootstrap_rms(e_test, rng),
+        "noise_floor": split.noise["pose"],
+        "train_tracks": len(split.select),
+        "test_tracks": len(split.confirm),
+        "converged": fit.converged,
+        "starts": starts,
+        "angle_reading": trackset.angle_note,
+        "glitch_frames": trackset.glitch_count,
+        "data": {"path": trackset.path},
+        "bootstrap_draws": bootstrap_record(fit.free, draws),
+        **fit_context(cfg, CONFIRM_FRACTION, seed),
+    }
+    return result, split, residual_test

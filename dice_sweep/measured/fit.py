@@ -32,11 +32,11 @@ import numpy as np
 
 from dice_sweep import effects as registry
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.measured.blocks import Linearisation, damped_inverse, normal_blocks, segment_sums
 from dice_sweep.measured.flights import segment_track
-from dice_sweep.physics import pack_params
 from dice_sweep.physics.kernel import sample_batch
 from dice_sweep.physics.layout import PATH_CUT, SAMPLE_RECORDS
-from dice_sweep.physics.params import FP_DRAG_MAX_STEP, FP_DRAG_TOL, IP_CONTINUE
+from dice_sweep.physics.params import FP_DRAG_MAX_STEP, FP_DRAG_TOL, FP_TMAX, IP_CONTINUE, KeyWriter
 
 MIN_FLIGHT_FRAMES = 4  # a flight needs this many usable frames to carry a state of its own
 ROBUST_SCALE = 0.05  # R: soft-L1 scale; larger misfits (a bounce that went another way) count less
@@ -199,17 +199,27 @@ class Segments:
         self.guess = np.array(guess).reshape(-1, 6)
 
 
+def _physical(values):
+    """The ``values`` (name -> value) the kernel reads: measurement effects are maps of the
+    poses, not the kernel's."""
+    return {k: v for k, v in values.items() if registry.param(k).key.split(".")[0] != "tracking"}
+
+
 def kernel_config(cfg, spec, values, **integrator):
     """The config the kernel runs at fitted ``values``: the spec's effects on, the physical
-    parameters set (measurement effects are maps of the poses, not the kernel's), the event
-    integrator; ``integrator`` overrides more of its keys (``t_max``)."""
-    physical = {k: v for k, v in values.items() if registry.param(k).key.split(".")[0] != "tracking"}
-    out = registry.with_values(cfg, spec.effects, physical)
+    parameters set, the event integrator; ``integrator`` overrides more of its keys (``t_max``)."""
+    out = registry.with_values(cfg, spec.effects, _physical(values))
     return dataclasses.replace(out, integrator=dataclasses.replace(out.integrator, method="event", **integrator))
 
 
 class ShootingModel:
-    """Simulated poses of segments for a spec's parameters and the segments' states."""
+    """Simulated poses of segments for a spec's parameters and the segments' states.
+
+    The kernel's vectors are packed once, from the config with the spec's effects switched on;
+    each evaluation writes the parameters' values straight into a copy of ``fpar`` through
+    their registry slots (:class:`dice_sweep.physics.params.KeyWriter`), bit for bit the
+    vectors of :func:`kernel_config` packed.
+    """
 
     def __init__(self, cfg, spec, segments):
         self.cfg = cfg
@@ -217,17 +227,23 @@ class ShootingModel:
         self.seg = segments
         self.names = spec.param_names()
         self.radius = cfg.die.circumradius
+        self.packed = KeyWriter(kernel_config(cfg, spec, {}))
+        self.packed.fpar[FP_DRAG_TOL] = FIT_DRAG_TOL
+        self.packed.fpar[FP_DRAG_MAX_STEP] = FIT_DRAG_MAX_STEP
+        self.packed.ipar[IP_CONTINUE] = 1
+
+    def kernel_params(self, values, t_max):
+        """(fpar, ipar) of the kernel at ``values`` (name -> value) and time limit ``t_max`` (s)."""
+        fpar = self.packed.fpar_with({registry.param(name).key: value for name, value in _physical(values).items()})
+        fpar[FP_TMAX] = t_max
+        return fpar, self.packed.ipar
 
     def simulate(self, values, states):
         """Poses (rows, 3) as the tracker would see them, and the outcome code per segment."""
         times_to_true, state_to_true, pose_to_file = registry.measurement_maps(self.cfg, values)
         times = times_to_true(self.seg.times)
         horizon = float(times.max()) if times.size else 0.0
-        cfg = kernel_config(self.cfg, self.spec, values, t_max=horizon + 1e-3)
-        fpar, ipar = pack_params(cfg)
-        fpar[FP_DRAG_TOL] = FIT_DRAG_TOL
-        fpar[FP_DRAG_MAX_STEP] = FIT_DRAG_MAX_STEP
-        ipar[IP_CONTINUE] = 1
+        fpar, ipar = self.kernel_params(values, horizon + 1e-3)
         out = np.zeros((self.seg.times.size, 6))
         outcome = np.zeros(self.seg.count, np.int8)
         sample_batch(fpar, ipar, np.ascontiguousarray(state_to_true(states)), np.ascontiguousarray(times), self.seg.starts, out, outcome)
@@ -258,25 +274,6 @@ def _robust_loss(residual, scale):
 
 def _robust_cost(residual, scale):
     return float(np.sum(_robust_loss(residual, scale)))
-
-
-def _segment_sums(values, starts):
-    """Sums over each segment's rows of ``values`` (rows, ...) -> (segments, ...)."""
-    if values.shape[0] == 0:
-        return np.zeros((len(starts) - 1,) + values.shape[1:])
-    sums = np.add.reduceat(values, starts[:-1], axis=0)
-    sums[starts[:-1] == starts[1:]] = 0.0  # empty segments (reduceat repeats the next row)
-    return sums
-
-
-@dataclass
-class Linearisation:
-    """Jacobians and weights of a fit at its solution (for intervals and cross-validation)."""
-
-    residual: np.ndarray  # (rows, 3)
-    weight: np.ndarray  # (rows,)
-    jac_params: np.ndarray  # (rows, 3, p)
-    jac_states: np.ndarray  # (rows, 3, 6)
 
 
 def _difference(model, moved_residual, residual, step):
@@ -312,43 +309,6 @@ def _jacobians(model, values, states, residual, free_params):
         moved[name] = values[name] + step
         jac_params[:, :, k] = _difference(model, model.residuals(moved, states), residual, step)
     return jac_params, jac_states
-
-
-def segment_products(jac, weight, residual, starts, hessian=True):
-    """Per segment, J^T W J (segments, q, q; None unless ``hessian``) and J^T W r (segments, q)
-    or, for a batch of residuals (rows, 3, S), (segments, q, S); ``jac`` is (rows, 3, q)."""
-    q = jac.shape[2]
-    flat = jac.reshape(-1, q)  # one row per pose component
-    weighted = (jac * weight[:, None, None]).reshape(-1, q)
-    tail = residual.shape[2:]
-    residual = residual.reshape(flat.shape[0], -1)
-    segments = len(starts) - 1
-    products = np.zeros((segments, q, q)) if hessian else None
-    gradient = np.zeros((segments, q, residual.shape[1]))
-    # a product per segment: 10x faster than a per-row einsum and reduceat (46 ms -> 5 ms on
-    # the 1800 flights of the real drops, scripts/bench_measured.py)
-    for s in range(segments):
-        a, b = 3 * starts[s], 3 * starts[s + 1]
-        if hessian:
-            products[s] = weighted[a:b].T @ flat[a:b]
-        gradient[s] = weighted[a:b].T @ residual[a:b]
-    return products, gradient.reshape((segments, q) + tail)
-
-
-def _normal_blocks(lin, starts):
-    """Per-segment blocks of the weighted normal equations: (hss, hsp, hpp, gs, gp)."""
-    jac = np.concatenate([lin.jac_states, lin.jac_params], axis=2)  # (rows, 3, 6 + p)
-    hessian, gradient = segment_products(jac, lin.weight, lin.residual, starts)
-    return hessian[:, :6, :6], hessian[:, :6, 6:], hessian[:, 6:, 6:], gradient[:, :6], gradient[:, 6:]
-
-
-def _damped_inverse(hss, damping):
-    """Inverse of each segment's state block with Marquardt damping (and a floor for states
-    that the frames do not pin, e.g. a spin nothing depends on)."""
-    diag = np.einsum("sii->si", hss)
-    floor = 1e-12 * np.maximum(diag.max(axis=1, keepdims=True), 1e-30)
-    damped = hss + np.einsum("si,ij->sij", damping * diag + floor, np.eye(6))
-    return np.linalg.inv(damped)
 
 
 @dataclass(frozen=True)
@@ -403,12 +363,12 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
         weight = _robust_weights(residual, scale)
         jac_p, jac_s = _jacobians(model, values, states, residual, free)
         lin = Linearisation(residual, weight, jac_p, jac_s)
-        hss, hsp, hpp, gs, gp = _normal_blocks(lin, starts)
+        hss, hsp, hpp, gs, gp = normal_blocks(lin, starts)
         hpp_total = hpp.sum(axis=0)
         floor_p = _damping_floor(hpp_total, scales)
         improved = False
         for _ in range(16):
-            inv = _damped_inverse(hss, damping)
+            inv = damped_inverse(hss, damping)
             step_p = np.zeros(len(free))
             if free:
                 solved = inv @ hsp  # (segments, 6, p)
@@ -454,7 +414,7 @@ FRESH_PASSES = 2  # times the states are refitted from their ballistic guesses a
 
 def _segment_costs(model, values, states):
     residual = model.residuals(values, states)
-    return _segment_sums(_robust_loss(residual, ROBUST_SCALE * model.radius), model.seg.starts)
+    return segment_sums(_robust_loss(residual, ROBUST_SCALE * model.radius), model.seg.starts)
 
 
 def _fresh_states(model, values, states):

@@ -50,10 +50,11 @@ from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import ordered_map
 from dice_sweep.geometry import clear_of_surfaces, side_below
 from dice_sweep.measured import fit as shooting
-from dice_sweep.measured.diagnose import Z95
+from dice_sweep.measured.blocks import segment_products, segment_sums
 from dice_sweep.measured.fit import kernel_config
 from dice_sweep.measured.impacts import rest_pose
 from dice_sweep.mapper import Mapper
+from dice_sweep.measured.stats import Z95
 from dice_sweep.physics import STATE_COLUMNS
 
 MIN_MEMBERS = 1000  # the command refuses smaller ensembles (the library takes any >= 1)
@@ -256,8 +257,8 @@ def flight_states(cfg, spec, params, prepared, bounce, sigma):
     scale = np.array([sigma[0], sigma[1], cfg.die.circumradius * sigma[2]])
     jac = lin.jac_states / scale[None, :, None]
     residual = lin.residual / scale[None, :]
-    hessian, _ = shooting.segment_products(jac, np.ones(len(residual)), residual, segments.starts)
-    chi2 = shooting._segment_sums(np.sum(residual**2, axis=1), segments.starts)
+    hessian, _ = segment_products(jac, np.ones(len(residual)), residual, segments.starts)
+    chi2 = segment_sums(np.sum(residual**2, axis=1), segments.starts)
     out = []
     for s, piece in enumerate(pieces):
         frames = int(segments.starts[s + 1] - segments.starts[s])

@@ -1,4 +1,5 @@
-"""One call per command: load tracks, fit or diagnose, write JSON / Markdown / pictures."""
+"""The reports of the measured-data commands: the --effects list, JSON-ready values, the residual
+by bounce and by landing tilt, the residual curves and the Markdown report (text, no files)."""
 
 import math
 

@@ -32,8 +32,6 @@ glitches, dropped frames), so the same seed gives the same drops and the same dr
 whatever the noise, and the same file byte for byte.
 """
 
-import gzip
-import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -46,7 +44,6 @@ from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.effects import measurement_maps
 from dice_sweep.errors import ConfigError, DiceSweepError
 from dice_sweep.geometry import DOWN, support
-from dice_sweep.outputs import CSV, JSON, check_outputs, write_json
 from dice_sweep.physics import pack_params
 from dice_sweep.physics.layout import STATE_COLUMNS
 from dice_sweep.physics.kernel import roll_one, sample_batch
@@ -54,7 +51,7 @@ from dice_sweep.physics.kernel import roll_one, sample_batch
 from dice_sweep.physics.layout import COUNT_COLUMNS, REC_KIND, REC_T, REC_WIDTH, ROLL_RECORDS, SAMPLE_RECORDS, SEG_END
 from dice_sweep.physics.params import FP_TMAX, IP_CONTINUE
 
-__all__ = ["DROP_RANGES", "INITIAL_MODES", "SimulatedDrops", "simulate_drops", "write_drops", "run_simulate_drops",
+__all__ = ["DROP_RANGES", "INITIAL_MODES", "SimulatedDrops", "simulate_drops", "csv_chunks", "provenance",
            "parse_noise", "parse_range", "sidecar_path"]
 
 # Default initial states, like hand drops onto a table: released from rest-ish 10-30 cm up
@@ -402,22 +399,25 @@ def simulate_drops(cfg, tracks, *, seed=SEED, rate=RATE, noise=NOISE, drop_prob=
     )
 
 
-# --- writing ---------------------------------------------------------------------------------
+# --- the file's contents (the app layer writes them) ----------------------------------------
 
 
 CHUNK_ROWS = 100_000  # rows formatted at a time
 
 
-def _write_csv(drops, file):
-    """The header and the rows as CSV text into a binary file object, a chunk at a time."""
-    file.write((",".join(COLUMNS) + "\n").encode("utf-8"))
+def csv_chunks(drops):
+    """The CSV text of the drops (``traj,t,x,y,phi``: the header, then one row per frame) as
+    UTF-8 bytes, a chunk of CHUNK_ROWS rows at a time."""
+    yield (",".join(COLUMNS) + "\n").encode("utf-8")
     for lo in range(0, drops.traj.size, CHUNK_ROWS):
         hi = lo + CHUNK_ROWS
         rows = zip(drops.traj[lo:hi].tolist(), drops.t[lo:hi].tolist(), drops.pose[lo:hi].tolist())
-        file.write("".join(f"{traj},{t:.10g},{x:.10g},{y:.10g},{phi:.10g}\n" for traj, t, (x, y, phi) in rows).encode("utf-8"))
+        yield "".join(f"{traj},{t:.10g},{x:.10g},{y:.10g},{phi:.10g}\n" for traj, t, (x, y, phi) in rows).encode("utf-8")
 
 
-def _provenance(drops, cfg, path):
+def provenance(drops, cfg, path):
+    """The sidecar's contents for the data file ``path``: that the data are synthetic, the
+    config, the options and the truth of every drop (its initial state, side and ending)."""
     glitches = [[int(traj), float(t)] for traj, t in zip(drops.traj[drops.glitch], drops.t[drops.glitch])]
     return {
         "synthetic": True,
@@ -441,55 +441,3 @@ def _provenance(drops, cfg, path):
             for i in range(len(drops.ending))
         ],
     }
-
-
-def _write_data(drops, path, file):
-    if not str(path).lower().endswith(".gz"):
-        _write_csv(drops, file)
-        return
-    # mtime 0 and no name: the same bytes every run
-    with gzip.GzipFile(filename="", mode="wb", fileobj=file, mtime=0, compresslevel=6) as packed:
-        _write_csv(drops, packed)
-
-
-def write_drops(drops, cfg, path):
-    """Write the drops as CSV (gzip when ``path`` ends in .gz) and the provenance as
-    ``path + ".json"``; each whole or not at all (a ``.partial`` file renamed), the data's
-    partial file complete before the sidecar is renamed, so that no data file stands without
-    its sidecar."""
-    provenance = _provenance(drops, cfg, path)
-    data_tmp = Path(f"{path}.partial")
-    try:
-        with open(data_tmp, "wb") as file:
-            _write_data(drops, path, file)
-        write_json(sidecar_path(path), provenance, indent=1)
-        os.replace(data_tmp, path)
-    except BaseException:
-        data_tmp.unlink(missing_ok=True)
-        raise
-    return path
-
-
-def _check_not_data(path):
-    """Refuse to replace a track file that simulate-drops did not write (tracked data, say):
-    one it wrote has its sidecar, which says ``"synthetic": true``."""
-    if not Path(path).exists():
-        return
-    try:
-        synthetic = json.loads(sidecar_path(path).read_text(encoding="utf-8")).get("synthetic") is True
-    except (OSError, ValueError, AttributeError):
-        synthetic = False
-    if not synthetic:
-        raise DiceSweepError(f"--output: {path}: exists and was not written by simulate-drops (no {sidecar_path(path).name} "
-                             "saying it is synthetic); remove it or choose another name (allowed: a new file, or one "
-                             "simulate-drops wrote)")
-
-
-def run_simulate_drops(cfg, out_path, tracks, **options):
-    """The ``simulate-drops`` command: check everything, simulate, write the CSV and its
-    sidecar JSON; returns the :class:`SimulatedDrops` (``describe(out_path)`` for the user)."""
-    check_outputs(("--output", out_path, CSV), ("--output", sidecar_path(out_path), JSON))
-    _check_not_data(out_path)
-    drops = simulate_drops(cfg, tracks, **options)  # checks every option before any work
-    write_drops(drops, cfg, out_path)
-    return drops

@@ -161,7 +161,7 @@ class TrackSet:
         n_test = round(test_fraction * count)
         if count >= 2 and 0.0 < test_fraction < 1.0:
             n_test = min(max(n_test, 1), count - 1)
-        ranked = sorted(range(count), key=lambda i: (_split_hash(seed, self.tracks[i].traj), i))
+        ranked = sorted(range(count), key=lambda i: (split_hash(seed, self.tracks[i].traj), i))
         held_out = set(ranked[:n_test])
         test = tuple(track for i, track in enumerate(self.tracks) if i in held_out)
         train = tuple(track for i, track in enumerate(self.tracks) if i not in held_out)
@@ -173,7 +173,7 @@ class TrackSet:
         return replace(self, tracks=tracks, glitch_count=sum(flagged), glitch_tracks=sum(1 for f in flagged if f))
 
 
-def _split_hash(seed, traj):
+def split_hash(seed, traj):
     """A number in [0, 2^64) fixed by (seed, traj): the rank of a track in the split."""
     digest = hashlib.sha256(f"{seed}:{traj}".encode()).digest()
     return int.from_bytes(digest[:8], "big")

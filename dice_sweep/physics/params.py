@@ -81,24 +81,69 @@ DRAG_TOL = 1e-13  # x rho_max
 DRAG_MAX_STEP = 1e-3  # s
 
 
-def slot(dotted_key):
-    """The kernel index of a registry config key (``"effects.air_drag"`` -> FP_DRAG's index)."""
-    for _, index, key in SLOTS.values():
-        if key.dotted == dotted_key:
-            return index
+# The base keys a fit frees, each copied into its slot as it is (the registry's keys follow SLOTS)
+BASE_KEY_SLOTS = {"world.g": FP_G, "contact.beta_normal": FP_BN, "contact.beta_tangential": FP_BT, "contact.friction": FP_MU}
+# The inertia effect's factor has no slot: it enters FP_INERTIA and FP_ALPHA (_pack_derived)
+INERTIA_KEY = "effects.inertia"
+
+
+def _slot_of(dotted_key):
+    """(vector, index) of a config key: a base key of BASE_KEY_SLOTS or a registry key, with
+    ``[i]`` for a component of an array key (``"effects.com_offset[1]"``)."""
+    name, _, item = dotted_key.partition("[")
+    offset = int(item.rstrip("]")) if item else 0
+    if name in BASE_KEY_SLOTS and not item:
+        return "fpar", BASE_KEY_SLOTS[name]
+    for vector, index, key in SLOTS.values():
+        if key.dotted == name and offset < max(key.length, 1):
+            return vector, index + offset
     raise KeyError(f"{dotted_key} has no kernel slot in the effect registry")
+
+
+def slot(dotted_key):
+    """The kernel index of a config key (``"effects.air_drag"`` -> FP_DRAG's index,
+    ``"effects.com_offset[1]"`` -> FP_COM_Y, ``"world.g"`` -> FP_G)."""
+    return _slot_of(dotted_key)[1]
+
+
+def _write_slot(key, value, fpar, ipar, index):
+    """A registry key's value into its slot (a choice as its index, an array in consecutive slots)."""
+    if key.choices:
+        ipar[index] = key.choices.index(value)
+    elif key.length:
+        fpar[index:index + key.length] = value
+    else:
+        fpar[index] = value
 
 
 def _pack_registry_slots(cfg, fpar, ipar):
     """Fill every registry slot from the config's value of its key."""
-    for vector, index, key in SLOTS.values():
-        value = effect_registry.get_key(cfg, key.dotted)
-        if key.choices:
-            ipar[index] = key.choices.index(value)
-        elif key.length:
-            fpar[index:index + key.length] = value
-        else:
-            fpar[index] = value
+    for _, index, key in SLOTS.values():
+        _write_slot(key, effect_registry.get_key(cfg, key.dotted), fpar, ipar, index)
+
+
+def _pack_derived(fpar, sides, inertia):
+    """The slots computed from others: the moment of inertia about the COM (the inertia
+    ``factor`` times eq. 25, less M d^2 of a loaded die), its ratio, the corners seen from the
+    COM and the die's reach, from the radius, centre-of-mass and corner-radius slots."""
+    radius = fpar[FP_R]
+    dx, dy = fpar[FP_COM_X], fpar[FP_COM_Y]  # noqa: F821
+    # parallel-axis rule: I about the COM is I about the centre less M d^2
+    moment = inertia * inertia_ratio(sides) * radius * radius - (dx * dx + dy * dy)
+    fpar[FP_INERTIA] = moment
+    fpar[FP_ALPHA] = moment / (radius * radius)
+    angles = 2.0 * math.pi * np.arange(sides) / sides
+    corner_radius = fpar[FP_CORNER_RADIUS]  # noqa: F821  (the rounded_corners key's slot)
+    # rounded corners: the arc centres, corners of the core polygon of apothem a - r
+    core = radius if corner_radius == 0.0 else core_circumradius(sides, radius, corner_radius)
+    bx = core * np.cos(angles) - dx
+    by = core * np.sin(angles) - dy
+    rho = np.hypot(bx, by)
+    corners = fpar[FP_CORNERS:].reshape(sides, CORNER_STRIDE)
+    corners[:, 0] = rho
+    corners[:, 1] = bx / rho
+    corners[:, 2] = by / rho
+    fpar[FP_RHO_MAX] = rho.max() + corner_radius
 
 
 def pack_params(cfg):
@@ -108,40 +153,56 @@ def pack_params(cfg):
     fpar = np.zeros(FP_CORNERS + CORNER_STRIDE * n)
     ipar = np.zeros(N_IPAR, dtype=np.int64)
     _pack_registry_slots(cfg, fpar, ipar)
-    dx, dy = fpar[FP_COM_X], fpar[FP_COM_Y]  # noqa: F821
     fpar[FP_R] = radius
-    fpar[FP_G] = cfg.world.g
-    fpar[FP_BN] = cfg.contact.beta_normal
-    fpar[FP_BT] = cfg.contact.beta_tangential
+    for key, index in BASE_KEY_SLOTS.items():
+        fpar[index] = effect_registry.get_key(cfg, key)
     sep = cfg.walls.separation
     fpar[FP_WALL] = math.inf if sep is None else 0.5 * sep
     fpar[FP_DT] = cfg.integrator.dt
     fpar[FP_TMAX] = cfg.integrator.t_max
-    # parallel-axis rule: I about the COM is I about the centre less M d^2
-    inertia = cfg.effects.inertia * inertia_ratio(n) * radius * radius - (dx * dx + dy * dy)
-    fpar[FP_INERTIA] = inertia
-    fpar[FP_ALPHA] = inertia / (radius * radius)
-    fpar[FP_MU] = cfg.contact.friction
     fpar[FP_WINDOW] = cfg.contact.window
     fpar[FP_DRAG_TOL] = DRAG_TOL
     fpar[FP_DRAG_MAX_STEP] = DRAG_MAX_STEP
-    angles = 2.0 * math.pi * np.arange(n) / n
-    corner_radius = fpar[FP_CORNER_RADIUS]  # noqa: F821  (the rounded_corners key's slot)
-    # rounded corners: the arc centres, corners of the core polygon of apothem a - r
-    core = radius if corner_radius == 0.0 else core_circumradius(n, radius, corner_radius)
-    bx = core * np.cos(angles) - dx
-    by = core * np.sin(angles) - dy
-    rho = np.hypot(bx, by)
-    corners = fpar[FP_CORNERS:].reshape(n, CORNER_STRIDE)
-    corners[:, 0] = rho
-    corners[:, 1] = bx / rho
-    corners[:, 2] = by / rho
-    fpar[FP_RHO_MAX] = rho.max() + corner_radius
+    _pack_derived(fpar, n, effect_registry.get_key(cfg, INERTIA_KEY))
     ipar[IP_N] = n
     ipar[IP_MODEL] = MODELS[cfg.contact.model]
     ipar[IP_METHOD] = METHODS[cfg.integrator.method]
     ipar[IP_MAX_EVENTS] = event_budget(cfg.integrator)
     return fpar, ipar
+
+
+class KeyWriter:
+    """A config's packed vectors, and copies of ``fpar`` with values of config keys written
+    straight into their slots: a fit moves its parameters evaluation after evaluation without
+    building and packing a config each time.
+
+    Parameters
+    ----------
+    cfg : Config
+        Everything the written values leave alone (switches, the die, the integrator).
+    """
+
+    def __init__(self, cfg):
+        self.fpar, self.ipar = pack_params(cfg)
+        self.sides = cfg.die.sides
+        self.inertia = effect_registry.get_key(cfg, INERTIA_KEY)
+
+    def fpar_with(self, values):
+        """A copy of ``fpar`` with ``values`` ({dotted config key: number}, a component of an
+        array key as ``key[i]``) in their float slots and the derived slots recomputed: the
+        ``fpar`` of the config with those values set, bit for bit."""
+        fpar = self.fpar.copy()
+        inertia = self.inertia
+        for key, value in values.items():
+            if key == INERTIA_KEY:
+                inertia = float(value)
+                continue
+            vector, index = _slot_of(key)
+            if vector != "fpar":
+                raise KeyError(f"{key} is a choice (ipar), not a number to write")
+            fpar[index] = float(value)
+        _pack_derived(fpar, self.sides, inertia)
+        return fpar
 
 
 def event_budget(integrator):

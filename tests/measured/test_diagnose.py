@@ -14,7 +14,8 @@ import pytest
 
 from dice_sweep import effects as registry
 from dice_sweep.config import parse_config
-from dice_sweep.measured.diagnose import _effect_away_from_null, _null_excluded, diagnose
+from dice_sweep.measured.diagnose import diagnose
+from dice_sweep.measured.reduced import effect_away_from_null, null_excluded
 from dice_sweep.measured.tracks import load_tracks
 from tests.measured.cases import DECLARED_PAPER, DECLARED_RIGID, NOISE, RADIUS, TRUTH
 from tests.measured.independent import Truth, simulate_drops, write_csv
@@ -43,7 +44,7 @@ def assert_named_effects_are_away_from_null(report, cfg):
     (one component for a vector effect), and a removed one is not named."""
     for name in report["effects_added"]:
         own = [p.name for p in registry.effect(name).params]
-        assert not own or any(_null_excluded(n, report["params"][n]["ci95"], cfg) for n in own), (name, report["params"])
+        assert not own or any(null_excluded(n, report["params"][n]["ci95"], cfg) for n in own), (name, report["params"])
     assert not {r["effect"] for r in report["effects_removed"]} & set(report["effects_added"])
     for step in report["chain"]:  # and each step still named keeps a significant gain in the final model
         assert step["removed"] or step["final_z"] > step["threshold_z"], step
@@ -241,12 +242,12 @@ def test_an_effect_is_away_from_its_null_by_its_intervals():
     cfg = parse_config(DECLARED_RIGID)
     params = {"com_dx": {"ci95": [0.001, 0.002]}, "com_dy": {"ci95": [-0.001, 0.001]}, "angle_offset": {"ci95": [-0.0006, 0.0053]},
               "air_drag": {"ci95": [math.nan, math.nan]}}
-    assert _effect_away_from_null("com_offset", params, cfg)  # one component is enough
-    assert not _effect_away_from_null("angle_offset", params, cfg)
-    assert not _effect_away_from_null("air_drag", params, cfg)  # no interval excludes nothing
-    assert _effect_away_from_null("corner_impulse", params, cfg)  # a switch, no parameter
+    assert effect_away_from_null("com_offset", params, cfg)  # one component is enough
+    assert not effect_away_from_null("angle_offset", params, cfg)
+    assert not effect_away_from_null("air_drag", params, cfg)  # no interval excludes nothing
+    assert effect_away_from_null("corner_impulse", params, cfg)  # a switch, no parameter
     params["com_dx"]["ci95"] = [-0.001, 0.002]
-    assert not _effect_away_from_null("com_offset", params, cfg)
+    assert not effect_away_from_null("com_offset", params, cfg)
 
 
 @pytest.mark.slow

@@ -5,6 +5,7 @@ basin (a bounce that goes another way)."""
 import numpy as np
 import pytest
 
+from dice_sweep import effects as registry
 from dice_sweep.config import parse_config
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.tracks import load_tracks
@@ -58,11 +59,11 @@ def test_frame_rows_point_at_the_frames_each_row_measures(segments):
 
 
 def test_the_noise_covariance_matches_refits_of_simulated_noise(tmp_path):
-    """First-order noise sd (diagnose.noise_covariance) against the spread of warm refits of the
+    """First-order noise sd (reduced.noise_covariance) against the spread of warm refits of the
     fitted model's poses with tracking noise added, one draw per frame: the nonlinear fit, not
     the linear algebra (tests/measured/test_reduced.py does that). 30 refits: the spread's own
     uncertainty is about 13 %."""
-    from dice_sweep.measured import diagnose as loop
+    from dice_sweep.measured import reduced
     from tests.measured.cases import NOISE as TRACKER
 
     path = tmp_path / "drops.csv"
@@ -72,8 +73,8 @@ def test_the_noise_covariance_matches_refits_of_simulated_noise(tmp_path):
     seg = shooting.Segments(shooting.prepare_tracks(load_tracks(path, sides=4, circumradius=RADIUS), cfg, noise=sigma), cfg.world.g)
     spec = shooting.ModelSpec.of(cfg)
     fit = shooting.fit_spec(cfg, spec, seg)
-    red = loop._reduce(shooting.linearise(cfg, fit, seg), seg)
-    first_order = np.sqrt(np.diag(loop.noise_covariance(red, seg, (sigma[0], sigma[1], RADIUS * sigma[2]))))
+    red = reduced.reduce(shooting.linearise(cfg, fit, seg), seg)
+    first_order = np.sqrt(np.diag(reduced.noise_covariance(red, seg, (sigma[0], sigma[1], RADIUS * sigma[2]))))
     clean, _ = shooting.ShootingModel(cfg, spec, seg).simulate(fit.params, fit.states)
     rng = np.random.default_rng(1)
     refits = []
@@ -149,3 +150,40 @@ def test_the_damping_floor_is_a_share_of_the_largest_scaled_curvature():
     largest = max(4.0 * 0.1**2, 2.0 * 1e-6)  # beta-like 0.04 beats the third's 2e-6
     assert floor == pytest.approx(shooting.PARAM_DAMPING_FLOOR * largest / scales**2)
     assert shooting._damping_floor(np.zeros((0, 0)), np.zeros(0)).size == 0
+
+
+def _packed_config(model, values, t_max):
+    """The kernel's vectors the way the fit made them before it wrote values into slots: a
+    config rebuilt with the values set (kernel_config), packed, with the fit's settings."""
+    from dice_sweep.physics import pack_params
+    from dice_sweep.physics.params import FP_DRAG_MAX_STEP, FP_DRAG_TOL, IP_CONTINUE
+
+    fpar, ipar = pack_params(shooting.kernel_config(model.cfg, model.spec, values, t_max=t_max))
+    fpar[FP_DRAG_TOL] = shooting.FIT_DRAG_TOL
+    fpar[FP_DRAG_MAX_STEP] = shooting.FIT_DRAG_MAX_STEP
+    ipar[IP_CONTINUE] = 1
+    return fpar, ipar
+
+
+@pytest.mark.parametrize("effect", [None, *registry.names()])
+def test_values_written_into_slots_give_the_residuals_of_a_rebuilt_config(segments, effect, monkeypatch):
+    """Every fittable parameter, moved a quarter of its fit range from its start: the vectors
+    equal those of the config rebuilt and packed, bit for bit, and so do the residuals (issue 29)."""
+    cfg, seg = segments
+    spec = shooting.ModelSpec.of(cfg, () if effect is None else (effect,))
+    model = shooting.ShootingModel(cfg, spec, seg)
+    own = [p.name for p in (registry.BASE_PARAMS if effect is None else registry.effect(effect).params)]
+    values = shooting.start_values(cfg, spec)
+    for name in own:
+        low, high = registry.param(name).bounds_of(cfg)
+        step = 0.25 * (high - low)
+        values[name] += step if values[name] + step <= high else -step
+    new_fpar, new_ipar = model.kernel_params(values, 0.7)
+    old_fpar, old_ipar = _packed_config(model, values, 0.7)
+    np.testing.assert_array_equal(new_fpar, old_fpar)
+    np.testing.assert_array_equal(new_ipar, old_ipar)
+    new = model.residuals(values, seg.guess)
+    monkeypatch.setattr(model, "kernel_params", lambda values, t_max: _packed_config(model, values, t_max))
+    old = model.residuals(values, seg.guess)
+    np.testing.assert_allclose(new, old, rtol=1e-12, atol=0)
+    assert not np.array_equal(new, model.residuals(shooting.start_values(cfg, spec), seg.guess)) or not own  # the values count

@@ -10,7 +10,8 @@ from types import SimpleNamespace
 import numpy as np
 
 from dice_sweep.config import default_config
-from dice_sweep.measured.diagnose import _at_a_bound_off_null, _describe_params, _null_excluded
+from dice_sweep.measured.diagnose import _at_a_bound_off_null
+from dice_sweep.measured.reduced import describe_params, null_excluded
 
 
 def _fit(names, values):
@@ -24,20 +25,20 @@ def test_a_parameter_without_information_has_no_interval_and_excludes_nothing():
     draws = np.column_stack([np.linspace(0.39, 0.41, 100), np.full(100, 3e-5)])  # zero width
     info = np.zeros((5, 2, 2))
     info[:, 0, 0] = 1.0  # each of 5 tracks informs beta_normal, none contact_time
-    out = _describe_params(fit, draws, cfg, SimpleNamespace(M=info))
+    out = describe_params(fit, draws, cfg, SimpleNamespace(M=info))
     assert out["beta_normal"]["identified"] and out["beta_normal"]["ci95"][0] < 0.4 < out["beta_normal"]["ci95"][1]
     assert not out["contact_time"]["identified"]
     assert all(math.isnan(v) for v in out["contact_time"]["ci95"])
-    assert not _null_excluded("contact_time", out["contact_time"]["ci95"], cfg)
+    assert not null_excluded("contact_time", out["contact_time"]["ci95"], cfg)
     # nor a zero-width interval from the tracks, nor a noise share, with the noise covariance
-    out = _describe_params(fit, draws, cfg, SimpleNamespace(M=info), noise_cov=np.diag([1e-6, 0.0]))
+    out = describe_params(fit, draws, cfg, SimpleNamespace(M=info), noise_cov=np.diag([1e-6, 0.0]))
     assert all(math.isnan(v) for v in out["contact_time"]["ci95"] + out["contact_time"]["ci95_tracks"])
     assert math.isnan(out["contact_time"]["sd_noise"])
     assert out["beta_normal"]["ci95"][0] <= 0.4 - 1.96e-3 and out["beta_normal"]["ci95"][1] >= 0.4 + 1.96e-3  # spans the noise share
     # with any information the interval is kept and can exclude the null
     info[2, 1, 1] = 1e-3
-    out = _describe_params(fit, draws, cfg, SimpleNamespace(M=info))
-    assert out["contact_time"]["identified"] and _null_excluded("contact_time", out["contact_time"]["ci95"], cfg)
+    out = describe_params(fit, draws, cfg, SimpleNamespace(M=info))
+    assert out["contact_time"]["identified"] and null_excluded("contact_time", out["contact_time"]["ci95"], cfg)
 
 
 def test_a_bound_counts_for_a_refit_only_away_from_the_null():

@@ -1,4 +1,4 @@
-"""The reduced (states eliminated) problem of diagnose against direct least squares.
+"""The reduced (states eliminated) problem (dice_sweep.measured.reduced) against direct least squares.
 
 Cross-validation, the bootstrap and the null simulations use per-segment quadratic forms
 instead of per-row residuals; here they are checked against the plain computation: for each
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from dice_sweep.config import load_config
-from dice_sweep.measured import diagnose as loop
-from dice_sweep.measured import fit as shooting
+from dice_sweep.measured import reduced
+from dice_sweep.measured.blocks import Linearisation
 
 ROOT = Path(__file__).resolve().parents[2]
 NAMES = ["beta_normal", "beta_tangential"]
@@ -48,7 +48,7 @@ def problem():
     rng = np.random.default_rng(3)
     seg = FakeSegments(rng)
     rows = seg.starts[-1]
-    lin = shooting.Linearisation(rng.normal(size=(rows, 3)) * 1e-3, rng.uniform(0.2, 1.0, rows),
+    lin = Linearisation(rng.normal(size=(rows, 3)) * 1e-3, rng.uniform(0.2, 1.0, rows),
                                  rng.normal(size=(rows, 3, 2)), rng.normal(size=(rows, 3, 6)))
     fold = np.arange(seg.tracks) % 4
     return seg, lin, fold
@@ -81,8 +81,8 @@ def _direct_cv(seg, lin, fold, residual):
 def test_cross_validation_equals_direct_least_squares(problem):
     seg, lin, fold = problem
     cfg = load_config(ROOT / "configs" / "square_drops.toml")
-    red = loop._reduce(lin, seg)
-    got = loop.cv_errors(red, seg, fold, NAMES, VALUES, cfg, loop._project(red, seg, centre=False))
+    red = reduced.reduce(lin, seg)
+    got = reduced.cv_errors(red, seg, fold, NAMES, VALUES, cfg, reduced.project(red, seg, centre=False))
     want = _direct_cv(seg, lin, fold, lin.residual)
     np.testing.assert_allclose(got, want, rtol=1e-6)
 
@@ -91,13 +91,13 @@ def test_a_batch_of_residuals_equals_one_at_a_time(problem):
     seg, lin, fold = problem
     cfg = load_config(ROOT / "configs" / "square_drops.toml")
     unit = np.ones_like(lin.weight)
-    red = loop._reduce(lin, seg, weight=unit)
+    red = reduced.reduce(lin, seg, weight=unit)
     noise = np.random.default_rng(4).normal(size=lin.residual.shape + (5,)) * 1e-4
-    batch = loop.cv_errors(red, seg, fold, NAMES, VALUES, cfg, loop._project(red, seg, noise, centre=False))
+    batch = reduced.cv_errors(red, seg, fold, NAMES, VALUES, cfg, reduced.project(red, seg, noise, centre=False))
     for s in range(noise.shape[2]):
-        one = loop.cv_errors(red, seg, fold, NAMES, VALUES, cfg, loop._project(red, seg, noise[:, :, s], centre=False))
+        one = reduced.cv_errors(red, seg, fold, NAMES, VALUES, cfg, reduced.project(red, seg, noise[:, :, s], centre=False))
         np.testing.assert_allclose(batch[:, s], one, rtol=1e-10)
-        unit_lin = shooting.Linearisation(lin.residual, unit, lin.jac_params, lin.jac_states)
+        unit_lin = Linearisation(lin.residual, unit, lin.jac_params, lin.jac_states)
         np.testing.assert_allclose(one, _direct_cv(seg, unit_lin, fold, noise[:, :, s]), rtol=1e-6)
 
 
@@ -106,13 +106,13 @@ def test_bootstrap_without_resampling_is_the_full_step(problem):
     centred gradient makes it the point itself."""
     seg, lin, fold = problem
     cfg = load_config(ROOT / "configs" / "square_drops.toml")
-    red = loop._reduce(lin, seg)
+    red = reduced.reduce(lin, seg)
 
     class Once:
         def integers(self, low, high, size):
             return np.arange(size)
 
-    draws = loop.bootstrap_params(red, seg, NAMES, VALUES, cfg, Once(), draws=3)
+    draws = reduced.bootstrap_params(red, seg, NAMES, VALUES, cfg, Once(), draws=3)
     np.testing.assert_allclose(draws, [[0.5, 0.0]] * 3, atol=1e-12)
 
 
@@ -143,10 +143,10 @@ def test_noise_covariance_equals_direct_least_squares():
     rng = np.random.default_rng(7)
     seg = SharedFrameSegments(rng)
     rows = seg.starts[-1]
-    lin = shooting.Linearisation(rng.normal(size=(rows, 3)) * 1e-3, rng.uniform(0.2, 1.0, rows),
+    lin = Linearisation(rng.normal(size=(rows, 3)) * 1e-3, rng.uniform(0.2, 1.0, rows),
                                  rng.normal(size=(rows, 3, 2)), rng.normal(size=(rows, 3, 6)))
     sigmas = np.array([2e-4, 3e-4, 1e-4])
-    got = loop.noise_covariance(loop._reduce(lin, seg), seg, sigmas)
+    got = reduced.noise_covariance(reduced.reduce(lin, seg), seg, sigmas)
     design = np.zeros((rows * 3, 2 + 6 * seg.count))
     design[:, :2] = lin.jac_params.reshape(-1, 2)
     for r in range(rows):
@@ -161,5 +161,5 @@ def test_noise_covariance_equals_direct_least_squares():
     np.testing.assert_allclose(got, want, rtol=1e-6)
     # the same rows, each its own frame, give another covariance: the shared frames count
     seg.frame_rows, seg.frames = np.arange(rows), int(rows)
-    apart = loop.noise_covariance(loop._reduce(lin, seg), seg, sigmas)
+    apart = reduced.noise_covariance(reduced.reduce(lin, seg), seg, sigmas)
     assert np.max(np.abs(np.diag(apart) / np.diag(got) - 1.0)) > 0.05

@@ -1,4 +1,5 @@
-"""`dice-sweep simulate-drops` and dice_sweep.measured.simulate: synthetic drops from the kernel.
+"""`dice-sweep simulate-drops` and dice_sweep.measured.simulate: synthetic drops from the kernel
+(the files: dice_sweep.app.simulate, tests/app/test_simulate.py).
 
 The poses are checked against the kernel's path computed another way (roll_one with a large
 record buffer, then dice_sweep.roll.sample_path, instead of sample_batch); the noise, the
@@ -14,12 +15,13 @@ import math
 import numpy as np
 import pytest
 
+from dice_sweep.app.simulate import run_simulate_drops
 from dice_sweep.cli import simulate_drops_command
 from dice_sweep.config import parse_config
 from dice_sweep.measured import simulate
 from dice_sweep.physics import layout
 from dice_sweep.measured.flights import estimate_noise
-from dice_sweep.measured.simulate import DROP_RANGES, REST_TAIL, run_simulate_drops, simulate_drops
+from dice_sweep.measured.simulate import DROP_RANGES, REST_TAIL, simulate_drops
 from dice_sweep.measured.tracks import load_tracks
 from dice_sweep.physics import COUNT_COLUMNS, pack_params
 from dice_sweep.physics.kernel import REC_WIDTH, roll_one, sample_batch
@@ -231,6 +233,23 @@ def test_initial_states_from_the_config_and_ranges():
 
 
 # --- the file -------------------------------------------------------------------------------
+
+
+def test_the_csv_text_and_the_provenance_are_the_drops(monkeypatch):
+    cfg = config()
+    drops = simulate_drops(cfg, 3, seed=2, glitch_prob=0.05)
+    text = b"".join(simulate.csv_chunks(drops))
+    lines = text.decode().splitlines()
+    assert lines[0] == "traj,t,x,y,phi" and len(lines) == drops.traj.size + 1
+    rows = np.loadtxt(lines[1:], delimiter=",")
+    np.testing.assert_array_equal(rows[:, 0], drops.traj)
+    np.testing.assert_allclose(rows[:, 1:], np.column_stack([drops.t, drops.pose]), rtol=1e-9, atol=1e-12)
+    monkeypatch.setattr(simulate, "CHUNK_ROWS", 7)  # chunks change nothing in the text
+    assert b"".join(simulate.csv_chunks(drops)) == text
+    record = simulate.provenance(drops, cfg, "/somewhere/d.csv.gz")
+    assert record["synthetic"] is True and record["data"] == "d.csv.gz" and parse_config(record["config"]) == cfg
+    assert record["frames_written"] == drops.traj.size and len(record["glitch_frames"]) == int(drops.glitch.sum()) > 0
+    assert [entry["side"] for entry in record["per_track"]] == drops.outcome.tolist()
 
 
 @pytest.mark.parametrize("name", ["drops.csv", "drops.csv.gz"])
