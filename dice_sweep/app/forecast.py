@@ -21,6 +21,7 @@ from dice_sweep.executor import worker_count
 from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured import forecast as fc
 from dice_sweep.measured.fit import kernel_config
+from dice_sweep.measured.checks import check_measured
 from dice_sweep.measured.report import jsonable
 from dice_sweep.measured.tracks import load_tracks
 from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
@@ -167,6 +168,7 @@ def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.
     _check_angle(source, angle)
     workers = worker_count(workers)
     trackset = load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle)
+    check_measured(trackset, cfg)  # units and conventions, before the work (issue 30)
     table, noise, sigma = loop.tracking_noise(trackset, cfg)
     loaded = time.perf_counter()
     intro = f"{len(trackset.tracks)} tracks; noise floor {noise['pose'] * 1000:.3f} mm; {source.parameter_note}"
