@@ -33,6 +33,14 @@ def _exit_code(error):
     return INTERRUPTED_EXIT if interrupted and isinstance(error, interrupted) else USER_ERROR_EXIT
 
 
+def _checked(no_check_units):
+    """Run a measured-data command with the checks of its tracks before the work
+    (dice_sweep.measured.checks; their warnings as warning lines), or without them."""
+    from dice_sweep.measured.checks import settings
+
+    return settings(enabled=not no_check_units, warn=_warn)
+
+
 def _usage_error(ctx, error):
     """click's own usage errors (an unknown option, a value of the wrong type, a missing
     argument) on one line too, instead of click's usage block; exit code 2."""
@@ -323,6 +331,9 @@ def control(h5_path, sigmas, method, samples, points, seed, workers, json_path, 
 
 def _data_options(command):
     """Options shared by the measured-data commands."""
+    command = click.option("--no-check-units", "no_check_units", is_flag=True,
+                           help="Skip the checks of the data's units and conventions (g, the angle's unit, the die, the angle's zero) "
+                                "made before the work (docs/measured_method.md, 'Checks before the work').")(command)
     command = click.option("--angle", default="as-is", show_default=True, metavar="as-is|auto",
                            help="as-is: the file's phi is the model's angle; auto: measure its sign and zero from tracks that end at rest (refused when none does).")(command)
     command = click.option("--rate", type=float, metavar="HZ", help="Frame rate, for files with a frame column instead of t.")(command)
@@ -336,7 +347,7 @@ def _data_options(command):
 @click.option("--effects", "effects_text", default="", metavar="A,B", help=f"Effects to add to the declared model ({', '.join(effect_names())}; docs/effects.md).")
 @click.option("--json", "json_path", metavar="OUT.json", help="Write the fit to this JSON file.")
 @click.option("--png", "png_dir", metavar="DIR", help="Draw the residual against time into this folder.")
-def fit_command(data, config_path, rate, angle, effects_text, json_path, png_dir):
+def fit_command(data, config_path, rate, angle, no_check_units, effects_text, json_path, png_dir):
     """Fit the declared model (plus --effects) to whole tracked drops by multiple shooting on
     the selection tracks, with 95 % intervals (bootstrap over tracks and tracking noise);
     score it on the confirmation tracks (RMS pose error, m) against the tracking noise.
@@ -347,8 +358,9 @@ def fit_command(data, config_path, rate, angle, effects_text, json_path, png_dir
     from dice_sweep.app.measured import parse_effects, run_fit
 
     _compile_notice()
-    result = run_fit(data, _load(config_path, ()), effects=parse_effects(effects_text), rate=rate, angle=angle,
-                     json_path=json_path, png_dir=png_dir)
+    with _checked(no_check_units):
+        result = run_fit(data, _load(config_path, ()), effects=parse_effects(effects_text), rate=rate, angle=angle,
+                         json_path=json_path, png_dir=png_dir)
     params = ", ".join(f"{k} = {p['value']:.4g} [{p['ci95'][0]:.4g}, {p['ci95'][1]:.4g}]" for k, p in result["params"].items())
     click.echo(f"{result['model']} + {result['effects'] or 'no effects'}: {params}; "
                f"error train {result['train_error'] * 1000:.3f} mm, held-out {result['test_error'] * 1000:.3f} mm "
@@ -362,7 +374,7 @@ def fit_command(data, config_path, rate, angle, effects_text, json_path, png_dir
 @click.option("--md", "md_path", metavar="REPORT.md", help="Also write a readable Markdown report.")
 @click.option("--png", "png_dir", metavar="DIR", help="Draw residual pictures, before and after, into this folder.")
 @click.option("--quiet", is_flag=True, help="No progress lines.")
-def diagnose(data, config_path, rate, angle, json_path, md_path, png_dir, quiet):
+def diagnose(data, config_path, rate, angle, no_check_units, json_path, md_path, png_dir, quiet):
     """Fit the declared model to whole tracks, test every effect of the registry on tracks it
     was not fitted to, add one only when its gain is significant and its value not null,
     repeat; report the verdict (explained / improved / unexplained) against the tracking noise.
@@ -373,8 +385,9 @@ def diagnose(data, config_path, rate, angle, json_path, md_path, png_dir, quiet)
     from dice_sweep.app.measured import run_diagnose
 
     _compile_notice()
-    report = run_diagnose(data, _load(config_path, ()), rate=rate, angle=angle, json_path=json_path, md_path=md_path,
-                          png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
+    with _checked(no_check_units):
+        report = run_diagnose(data, _load(config_path, ()), rate=rate, angle=angle, json_path=json_path, md_path=md_path,
+                              png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
     click.echo(f"{report['verdict']}: effects added {report['effects_added'] or 'none'}; confirmation error "
                f"{report['baseline']['test_error'] * 1000:.3f} mm before, {report['after']['test_error'] * 1000:.3f} mm after "
                f"({report['after']['multiple_of_floor']:.1f} x the noise floor {report['noise_floor'] * 1000:.3f} mm)")
@@ -444,7 +457,7 @@ def simulate_drops_command(config, out_path, tracks, seed, rate, noise, drop_pro
 @click.option("--gaps", default="auto", show_default=True, metavar="auto|as-is", help="Re-insert frames the file dropped, or keep its times.")
 @click.option("--json", "json_path", metavar="OUT.json", help="Write every impact and the summary to this JSON file.")
 @click.option("--png", "png_path", metavar="OUT.png", help="Draw histograms of the coefficients to this PNG.")
-def calibrate_command(data, config_path, rate, angle, gaps, json_path, png_path):
+def calibrate_command(data, config_path, rate, angle, no_check_units, gaps, json_path, png_path):
     """Measure the restitution coefficients at every impact of the tracks in DATA, as the paper
     did by hand (eqs 9 and 10), with their corner-impulse counterparts, spread and outliers.
 
@@ -453,8 +466,9 @@ def calibrate_command(data, config_path, rate, angle, gaps, json_path, png_path)
     """
     from dice_sweep.app.measured import run_calibrate
 
-    result, written = run_calibrate(data, _load(config_path, ()), rate=rate, angle=angle, gaps=gaps, json_path=json_path,
-                                    png_path=png_path)
+    with _checked(no_check_units):
+        result, written = run_calibrate(data, _load(config_path, ()), rate=rate, angle=angle, gaps=gaps, json_path=json_path,
+                                        png_path=png_path)
     click.echo(result.describe())
     for path in written:
         _report_written(path)
@@ -477,7 +491,7 @@ def calibrate_command(data, config_path, rate, angle, gaps, json_path, png_path)
 @click.option("--md", "md_path", metavar="OUT.md", help="Also write a readable Markdown report.")
 @click.option("--png", "png_dir", metavar="DIR", help="Draw reliability.png, skill_by_bounce.png and release_map.png into this folder.")
 @click.option("--quiet", is_flag=True, help="No progress lines.")
-def forecast_command(data, config_path, rate, angle, fit_path, from_bounce, members, seed, workers, map_size, map_axes, json_path, md_path,
+def forecast_command(data, config_path, rate, angle, no_check_units, fit_path, from_bounce, members, seed, workers, map_size, map_axes, json_path, md_path,
                      png_dir, quiet):
     """Probability of each side for the held-out tracked drops of DATA, from what was seen before
     they landed: for every track an ensemble drawn from the uncertainty of its state in the
@@ -492,9 +506,10 @@ def forecast_command(data, config_path, rate, angle, fit_path, from_bounce, memb
     from dice_sweep.app.forecast import run_forecast_command
 
     _compile_notice()
-    report = run_forecast_command(data, _load(config_path, ()), fit_path, from_bounce=from_bounce, members=members, seed=seed, rate=rate,
-                                  angle=angle, workers=workers, map_size=map_size, map_axes=map_axes, json_path=json_path,
-                                  md_path=md_path, png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
+    with _checked(no_check_units):
+        report = run_forecast_command(data, _load(config_path, ()), fit_path, from_bounce=from_bounce, members=members, seed=seed, rate=rate,
+                                      angle=angle, workers=workers, map_size=map_size, map_axes=map_axes, json_path=json_path,
+                                      md_path=md_path, png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
     s = report["scores"]
     click.echo(f"from flight {s['from_bounce']}, {s['n_tracks']} held-out tracks: log score {s['log_score']['value']:.3f} "
                f"[{s['log_score']['ci95'][0]:.3f}, {s['log_score']['ci95'][1]:.3f}] (uniform {s['log_score_uniform']['value']:.3f}), "

@@ -14,6 +14,7 @@ from dice_sweep.executor import worker_count
 from dice_sweep.measured import forecast as fc
 from dice_sweep.measured.noise import tracking_noise
 from dice_sweep.measured.release import release_map
+from dice_sweep.measured.checks import check_measured
 from dice_sweep.measured.report import jsonable
 from dice_sweep.measured.split import CONFIRM_FRACTION
 from dice_sweep.measured.tracks import load_tracks
@@ -84,6 +85,7 @@ def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.
     _check_angle(source, angle)
     workers = worker_count(workers)
     trackset = load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle)
+    check_measured(trackset, cfg)  # units and conventions, before the work (issue 30)
     table, noise, sigma = tracking_noise(trackset, cfg)
     loaded = time.perf_counter()
     intro = f"{len(trackset.tracks)} tracks; noise floor {noise['pose'] * 1000:.3f} mm; {source.parameter_note}"

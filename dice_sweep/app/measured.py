@@ -8,6 +8,7 @@ from pathlib import Path
 from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured.calibrate import CalibrationResult, calibrate
 from dice_sweep.measured.report import jsonable, markdown_report, parse_effects, residual_curves
+from dice_sweep.measured.checks import check_measured
 from dice_sweep.measured.tracks import load_tracks
 from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
 from dice_sweep.plotting import image_formats, plot_calibration, plot_residual_curves
@@ -16,7 +17,9 @@ __all__ = ["run_calibrate", "run_fit", "run_diagnose", "parse_effects"]  # fit's
 
 
 def _load(data_path, cfg, rate, angle, gaps="auto"):
-    return load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle, gaps=gaps)
+    trackset = load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle, gaps=gaps)
+    check_measured(trackset, cfg)  # units and conventions, before the work (issue 30)
+    return trackset
 
 
 def run_calibrate(data_path, cfg, *, rate=None, angle="as-is", gaps="auto", json_path=None, png_path=None) -> tuple[CalibrationResult, list]:
