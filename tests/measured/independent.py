@@ -8,9 +8,9 @@ compares it with the kernel.
 
 What is simulated
 -----------------
-* Flight of the centre of mass (COM) under gravity, in closed form, or, when air drag, spin
-  damping or the Magnus force is on, by scipy's DOP853 (rtol 1e-12) for the translation while
-  the rotation stays in closed form.
+* Flight of the centre of mass (COM) under gravity, in closed form, or, when air drag or the
+  Magnus force is on, by scipy's DOP853 (rtol 1e-12) for the translation while the rotation
+  stays in closed form.
 * Impacts of one corner with the table (y = 0), by the ``paper`` law (eqs 9-13, with the
   documented fallback for its "undefined case 1") or the ``rigid`` corner impulse (Newton
   restitution, tangential restitution, the Coulomb cap, the energy rule). Where the cap binds,
@@ -51,8 +51,15 @@ What is simulated
   blended); the second corner, if it still approaches, has its own impact when it arrives.
 * Effects of the project's library: quadratic air drag on the COM, a loaded die (COM offset in
   the body frame), speed-dependent normal restitution, the inertia factor, rounded corners, the
-  friction rules (above). Effects outside it: spin damping and a
-  Magnus force in flight. Measurement effects: a wrong clock, a wrong length scale and an angle
+  friction rules (above). Effects outside it: spin damping (d omega/dt = -k omega) and spin
+  drag (d omega/dt = -k |omega| omega, ``spin_drag`` in 1/rad) in flight, both in closed form; a
+  Magnus force in flight; a table tilted by ``table_tilt`` (the track's frame is the table's:
+  gravity (g sin(tilt), -g cos(tilt)), so x and y are parabolas in flight); a normal
+  restitution that differs by corner (``corner_beta_normal[k]`` for impacts at corner k, in
+  every law); and a compliant contact of finite duration (``compliant_time``): every contact
+  is then integrated in time, a spring-dashpot in compression and a spring in restitution at
+  each corner in contact, with regularised Coulomb friction (:class:`_Contact`,
+  :func:`compliant_constants`), in place of the impact laws. Measurement effects: a wrong clock, a wrong length scale and an angle
   offset, then Gaussian noise, dropped frames and one-frame glitches.
 
 What is not simulated
@@ -100,6 +107,8 @@ FRICTION_RULES = ("aimed", "sliding", "exact")
 RESTITUTION_LAWS = ("newton", "energetic")
 EXACT_RTOL = 1e-12  # solve_ivp's relative tolerance over the normal impulse (the exact rule)
 EXACT_MAX_PHASES = 50  # phases (slip, stick, reversal, compression, restitution) of one exact impact
+COMPLIANT_SLIP = 1e-3  # m/s: slip speed over which the compliant contact's friction reaches its Coulomb value
+COMPLIANT_LIMIT = 50.0  # contact times: a compliant contact longer than this is sustained (the track ends)
 
 
 @dataclass(frozen=True)
@@ -129,6 +138,10 @@ class Truth:
     # physics OUTSIDE the project's effect library (for "unexplained" tests):
     spin_damping: float = 0.0  # 1/s, in flight d(omega)/dt = -k omega
     magnus: float = 0.0  # 1, in flight a = k * (omega z-hat x v) = k * omega * (-vy, vx)
+    spin_drag: float = 0.0  # 1/rad, in flight d(omega)/dt = -k |omega| omega (quadratic spin drag)
+    table_tilt: float = 0.0  # rad, the table tilted: in its frame gravity is (g sin(tilt), -g cos(tilt))
+    corner_beta_normal: tuple = ()  # per corner index k: the beta_normal of corner k's impacts (empty: beta_normal)
+    compliant_time: float = 0.0  # s, a compliant contact of this duration replaces the impact laws (0: off)
 
 
 class _Die:
@@ -184,6 +197,22 @@ class _Die:
         self.gamma = np.arctan2(body[:, 1], body[:, 0])  # rad, its body angle
         self.rule = truth.friction_rule
         self.restitution = truth.restitution
+        if truth.spin_drag < 0.0 or truth.spin_damping < 0.0 or not math.isfinite(truth.spin_drag):
+            raise ValueError("spin_drag and spin_damping must be >= 0")
+        if truth.spin_drag != 0.0 and truth.spin_damping != 0.0:
+            raise ValueError("spin_drag and spin_damping cannot both act (one closed form each)")
+        if not abs(truth.table_tilt) < 0.5 * math.pi:
+            raise ValueError(f"table_tilt must lie in (-pi/2, pi/2) rad, not {truth.table_tilt!r}")
+        betas = tuple(truth.corner_beta_normal)
+        if betas and (len(betas) != n or not all(0.0 <= float(b) <= 1.0 for b in betas)):
+            raise ValueError(f"corner_beta_normal must hold {n} values in [0, 1] (one per corner), not {truth.corner_beta_normal!r}")
+        if not 0.0 <= truth.compliant_time <= MAX_CONTACT_TIME:
+            raise ValueError(f"compliant_time must lie in [0, {MAX_CONTACT_TIME}] s, not {truth.compliant_time!r}")
+        if truth.compliant_time > 0.0:
+            if not math.isfinite(truth.friction):
+                raise ValueError("the compliant contact needs a finite friction coefficient")
+            if truth.contact_time > 0.0 or truth.friction_rule == "exact":
+                raise ValueError("the compliant contact replaces the impact laws: no contact_time, no friction_rule 'exact'")
 
     def offset(self, phi):
         """The COM seen from the geometric centre in the world frame at angle ``phi`` (m)."""
@@ -223,7 +252,8 @@ class _Die:
 
 def energy(truth, com_state):
     """Specific mechanical energy (J/kg) of a COM state: translation, rotation about the COM,
-    and height of the COM.
+    and the potential of gravity (the height of the COM; on a tilted table, minus g sin(tilt) x
+    as well).
 
     Parameters
     ----------
@@ -232,8 +262,9 @@ def energy(truth, com_state):
         (x, y, phi, vx, vy, omega) of the centre of mass.
     """
     die = _Die(truth)
-    _, y, _, vx, vy, w = com_state
-    return 0.5 * (vx * vx + vy * vy) + 0.5 * die.inertia * w * w + truth.g * y
+    x, y, _, vx, vy, w = com_state
+    tilt = truth.table_tilt  # gravity (g sin(tilt), -g cos(tilt)) in the table's frame
+    return 0.5 * (vx * vx + vy * vy) + 0.5 * die.inertia * w * w + truth.g * (math.cos(tilt) * y - math.sin(tilt) * x)
 
 
 def kinetic_energy(truth, com_state):
@@ -248,9 +279,12 @@ def kinetic_energy(truth, com_state):
 class _Flight:
     """Free flight of the COM from time ``t0`` and COM state ``s0`` up to ``t_stop``.
 
-    Without drag, spin damping or Magnus force the flight is Smith's closed form (eqs 6-8).
-    Otherwise the translation is integrated by DOP853 with dense output; the rotation is in
-    closed form either way (spin damping only: omega = omega0 exp(-k t)).
+    Gravity is (g sin(tilt), -g cos(tilt)) in the table's frame (``table_tilt``; (0, -g) on a
+    level table). Without drag or Magnus force the translation is Smith's closed form
+    (eqs 6-8, with that gravity). Otherwise it is integrated by DOP853 with dense output. The
+    rotation is in closed form either way: omega = omega0 exp(-k t) with spin damping,
+    omega = omega0 / (1 + k |omega0| t) and phi = phi0 + sign(omega0) ln(1 + k |omega0| t) / k
+    with spin drag (d omega/dt = -k |omega| omega).
     """
 
     def __init__(self, truth, t0, s0, t_stop):
@@ -258,17 +292,19 @@ class _Flight:
         self.t0 = float(t0)
         self.s0 = np.array(s0, dtype=float)
         self.k_spin = float(truth.spin_damping)
+        self.k_drag = float(truth.spin_drag)
+        self.gravity = (float(truth.g) * math.sin(truth.table_tilt), -float(truth.g) * math.cos(truth.table_tilt))
         self.numeric = truth.air_drag != 0.0 or truth.magnus != 0.0
         self.sol = None
         if self.numeric and t_stop > self.t0:
-            c, km, g = float(truth.air_drag), float(truth.magnus), float(truth.g)
-            w0, k = self.s0[5], self.k_spin
+            c, km = float(truth.air_drag), float(truth.magnus)
+            ax, ay = self.gravity
 
             def rhs(tau, u):
                 vx, vy = u[2], u[3]
-                w = w0 * math.exp(-k * tau)
+                w = self.rotation(tau)[1]
                 sp = math.hypot(vx, vy)
-                return [vx, vy, -c * sp * vx - km * w * vy, -g - c * sp * vy + km * w * vx]
+                return [vx, vy, ax - c * sp * vx - km * w * vy, ay - c * sp * vy + km * w * vx]
 
             u0 = [self.s0[0], self.s0[1], self.s0[3], self.s0[4]]
             self.sol = solve_ivp(rhs, (0.0, t_stop - self.t0), u0, method="DOP853", rtol=1e-12,
@@ -279,6 +315,10 @@ class _Flight:
     def rotation(self, tau):
         """(phi, omega, d omega/dt) at ``tau`` s after the start of the flight."""
         phi0, w0, k = self.s0[2], self.s0[5], self.k_spin
+        if self.k_drag != 0.0:
+            q = self.k_drag * abs(w0)  # 1/s: the spin's initial decay rate
+            w = w0 / (1.0 + q * tau)
+            return phi0 + math.copysign(1.0, w0) * math.log1p(q * tau) / self.k_drag, w, -self.k_drag * abs(w) * w
         if k == 0.0:
             return phi0 + w0 * tau, w0, 0.0
         # expm1 keeps (1 - exp(-k tau))/k exact for small k tau
@@ -290,15 +330,17 @@ class _Flight:
         phi, w, _ = self.rotation(tau)
         if self.sol is None:
             x0, y0, _, vx0, vy0, _ = self.s0
-            g = self.truth.g
-            return np.array([x0 + vx0 * tau, y0 + vy0 * tau - 0.5 * g * tau * tau, phi, vx0, vy0 - g * tau, w])
+            ax, ay = self.gravity
+            return np.array([x0 + vx0 * tau + 0.5 * ax * tau * tau, y0 + vy0 * tau + 0.5 * ay * tau * tau, phi,
+                             vx0 + ax * tau, vy0 + ay * tau, w])
         x, y, vx, vy = self.sol.sol(tau)
         return np.array([x, y, phi, vx, vy, w])
 
     def accel_bound(self, s, h):
         """Upper bound of |a_y| of the COM over the next ``h`` s from COM state ``s`` (m/s^2).
 
-        Without drag and Magnus force it is g exactly. With them |v| can grow by at most g h
+        Without drag and Magnus force it is g (exactly on a level table; g cos(tilt) is less). With
+        them |v| can grow by at most g h
         (drag only slows, the Magnus force is perpendicular to v) and |omega| only decays.
         """
         g = self.truth.g
@@ -699,12 +741,13 @@ def _two_corner_impact(truth, die, s, k, j):
     ra, rb = corners[k], corners[j]
     q = s[3:].copy()
     u_n = np.array([q[1] + q[2] * ra[0], q[1] + q[2] * rb[0]])
-    betas = truth.beta_normal / (1.0 + truth.speed_restitution * np.abs(u_n))
+    betas = np.array([_corner_beta(truth, k), _corner_beta(truth, j)]) / (1.0 + truth.speed_restitution * np.abs(u_n))
     beta_t = truth.beta_tangential
     info = {"u_n": float(u_n[0]), "u_n_second": float(u_n[1]), "capped": False, "clipped": False}
     if truth.contact == "paper" and q[1] < 0.0:
         # one application of eqs 9, 12, 13: the law does not depend on the corner
-        beta_n = truth.beta_normal / (1.0 + truth.speed_restitution * float(np.abs(u_n).max()))
+        faster = (k, j)[int(np.argmax(np.abs(u_n)))]
+        beta_n = _corner_beta(truth, faster) / (1.0 + truth.speed_restitution * float(np.abs(u_n).max()))
         a, R = die.alpha, die.radius
         vx, vy, w = q
         q2 = np.array([-((a * beta_t - 1.0) * vx + a * (beta_t + 1.0) * R * w) / (a + 1.0), -beta_n * vy,
@@ -723,6 +766,12 @@ def _two_corner_impact(truth, die, s, k, j):
     new = s.copy()
     new[3:] = q + dq
     return new, info
+
+
+def _corner_beta(truth, corner):
+    """beta_normal of impacts at ``corner``: its entry of ``corner_beta_normal``, else
+    ``beta_normal``."""
+    return float(truth.corner_beta_normal[corner]) if truth.corner_beta_normal else float(truth.beta_normal)
 
 
 def impact(truth, com_state, corner, second=None, share=1.0):
@@ -785,7 +834,7 @@ def _single_impact(truth, die, s, corner):
     r = die.corners(s)[corner]
     vx, vy, w = s[3], s[4], s[5]
     u = np.array([vx - w * r[1], vy + w * r[0]])  # corner velocity v + omega z x r
-    beta_n = truth.beta_normal / (1.0 + truth.speed_restitution * abs(u[1]))
+    beta_n = _corner_beta(truth, corner) / (1.0 + truth.speed_restitution * abs(u[1]))
     beta_t = truth.beta_tangential
     info = {"u_n": float(u[1]), "beta_n": beta_n, "capped": False, "clipped": False}
     if truth.contact == "paper" and vy < 0.0:
@@ -808,6 +857,122 @@ def _single_impact(truth, die, s, corner):
     new[5] += (r[0] * P[1] - r[1] * P[0]) / die.inertia
     info["law"] = "rigid" if truth.contact == "rigid" else "fallback"
     return new, info
+
+
+# ----------------------------------------------------------------------------------- compliant contact
+
+
+def _loading_decay(zeta):
+    """f(zeta) with -ln(beta) = zeta f(zeta) for the compliant contact (see :func:`compliant_constants`):
+    arccos(zeta)/sqrt(1 - zeta^2) below 1, 1 at 1, arccosh(zeta)/sqrt(zeta^2 - 1) above."""
+    if abs(zeta - 1.0) < 1e-9:
+        return 1.0
+    if zeta < 1.0:
+        return math.acos(zeta) / math.sqrt(1.0 - zeta * zeta)
+    return math.acosh(zeta) / math.sqrt(zeta * zeta - 1.0)
+
+
+def compliant_constants(beta_normal, duration):
+    """Stiffness K (1/s^2) and damping C (1/s), per unit mass, of the compliant contact.
+
+    The normal force per unit mass at a corner that has sunk delta > 0 into the table is
+    F_n = K delta + C max(d delta/dt, 0): a Kelvin-Voigt spring-dashpot while the corner goes
+    in, a spring alone while it comes out (so the force is never a pull, and it falls to zero
+    exactly where the corner leaves). A point mass hitting it at speed v (no gravity) goes in
+    for f(zeta)/omega_n, to delta_max = (v/omega_n) exp(-zeta f(zeta)), and comes out in
+    pi/(2 omega_n) at omega_n delta_max, with omega_n = sqrt(K), zeta = C/(2 omega_n) and f of
+    :func:`_loading_decay`. So its restitution is exp(-zeta f(zeta)) and its contact lasts
+    (f(zeta) + pi/2)/omega_n: K and C are set so that these are ``beta_normal`` and
+    ``duration``. (A die's corner has less effective mass than the die, and turns while it is
+    in: its own restitution and duration differ.)
+    """
+    if not 0.0 < beta_normal <= 1.0:
+        raise ValueError(f"the compliant contact needs beta_normal in (0, 1], not {beta_normal!r}")
+    target = -math.log(beta_normal)
+    zeta = 0.0 if target == 0.0 else brentq(lambda z: z * _loading_decay(z) - target, 0.0, 1e6, xtol=1e-15, rtol=1e-14)
+    omega_n = (_loading_decay(zeta) + 0.5 * math.pi) / duration
+    return omega_n * omega_n, 2.0 * zeta * omega_n
+
+
+class _Contact:
+    """A compliant contact of the die with the table, integrated in time from ``t0`` and COM state
+    ``s0`` (a corner touching, approaching).
+
+    Every corner in contact (depth delta under the table, from when it reaches the table until
+    it leaves it) pushes with F_n = K delta + C max(d delta/dt, 0) (:func:`compliant_constants`,
+    K and C from that corner's beta_normal and ``compliant_time``) and rubs with the regularised
+    Coulomb force F_t = -mu F_n u_t / sqrt(u_t^2 + ``COMPLIANT_SLIP``^2) (u_t the contact point's
+    tangential velocity), both at its contact point; gravity (with the tilt) acts too, drag and
+    spin drag do not. The rigid body's equations of motion are integrated by scipy's LSODA in
+    phases with a fixed set of corners in contact (a phase ends where another corner reaches
+    the table or one leaves it: the force jumps by C u_n where a corner arrives, and an
+    integrator must not straddle that), until none is in contact (``t1``, ``after``). ``ended``
+    is False when that took more than ``COMPLIANT_LIMIT`` contact times (sustained contact).
+    """
+
+    def __init__(self, truth, die, t0, s0):
+        self.t0 = float(t0)
+        betas = [_corner_beta(truth, k) for k in range(die.n)]
+        constants = np.array([compliant_constants(b, truth.compliant_time) for b in betas])
+        stiff, damp = constants[:, 0], constants[:, 1]
+        mu, inv_i = float(truth.friction), 1.0 / die.inertia
+        ax, ay = truth.g * math.sin(truth.table_tilt), -truth.g * math.cos(truth.table_tilt)
+        clear = 2.0 * CONTACT_TOL * die.radius  # a corner this close to the table, approaching, is in contact
+
+        def rhs(_, z, inside):
+            fx, fy, torque = ax, ay, 0.0
+            if inside.any():
+                points = die.corners(z)[inside]
+                delta = -die.heights(z)[inside]
+                rate = -(z[4] + z[5] * points[:, 0])  # d delta / dt = -u_n
+                fn = np.maximum(stiff[inside] * delta + damp[inside] * np.maximum(rate, 0.0), 0.0)
+                ut = z[3] - z[5] * points[:, 1]
+                ft = -mu * fn * ut / np.sqrt(ut * ut + COMPLIANT_SLIP**2)
+                fx += float(ft.sum())
+                fy += float(fn.sum())
+                torque = float((points[:, 0] * fn - points[:, 1] * ft).sum()) * inv_i
+            return [z[3], z[4], z[5], fx, fy, torque]
+
+        def crossing(i, entering):
+            def event(_, z, inside):
+                depth = -die.heights(z)[i]
+                return depth if entering else depth + clear
+            event.terminal, event.direction = True, (1.0 if entering else -1.0)
+            return event
+
+        span = COMPLIANT_LIMIT * truth.compliant_time
+        z = np.array(s0, dtype=float)
+        inside = (-die.heights(z) > -clear) & (die.normal_speeds(z) < 0.0)
+        tau, self.phases, touched = 0.0, [], inside.copy()
+        while inside.any() and tau < span:
+            events = [crossing(i, not inside[i]) for i in range(die.n)]
+            sol = solve_ivp(rhs, (tau, span), z, method="LSODA", rtol=1e-10, atol=1e-13, events=events,
+                            dense_output=True, args=(inside,), max_step=truth.compliant_time / 20.0)
+            if not sol.success:
+                raise RuntimeError(f"compliant contact integration failed: {sol.message}")
+            hits = [(float(te[0]), i, ye[0]) for i, (te, ye) in enumerate(zip(sol.t_events, sol.y_events)) if te.size]
+            if not hits:
+                self.phases.append((tau, span, sol.sol))
+                tau, z = span, sol.y[:, -1]
+                break
+            when, i, z = min(hits, key=lambda h: h[0])
+            self.phases.append((tau, when, sol.sol))
+            tau, z = when, np.array(z, dtype=float)
+            inside = inside.copy()
+            inside[i] = not inside[i]
+            touched |= inside
+        self.ended = not inside.any()
+        self.t1 = self.t0 + tau
+        self.after = z
+        self.contacts = int(touched.sum())  # corners that were in contact
+
+    def state(self, t):
+        """COM state at absolute time ``t`` in [t0, t1]."""
+        tau = min(max(t - self.t0, 0.0), self.t1 - self.t0)
+        for begin, end, sol in self.phases:
+            if tau <= end:
+                return np.asarray(sol(tau), dtype=float)
+        return self.after.copy()
 
 
 # ----------------------------------------------------------------------------------- paths
@@ -911,6 +1076,21 @@ def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
         if -speed[k] < min_bounce_speed:
             path.end = "slow_impact"
             return path
+        if truth.compliant_time > 0.0:
+            contact = _Contact(truth, die, tc, before)
+            path.flights.append((tc, contact.t1, contact))
+            path.t_end = contact.t1
+            after = contact.after
+            path.impacts.append({"t": tc, "corner": k, "second": None, "contacts": contact.contacts, "share": 0.0,
+                                 "before": before, "after": after, "law": "compliant", "duration": contact.t1 - tc,
+                                 "u_n": float(speed[k]), "u_n_after": float(die.normal_speeds(after)[k]),
+                                 "beta_n": _corner_beta(truth, k), "capped": False, "clipped": False,
+                                 "dT": _kinetic(die, after[3:]) - _kinetic(die, before[3:])})
+            if not contact.ended:
+                path.end = "no_rebound"  # the contact went on: the die rests, rocks or slides on the table
+                return path
+            t, s = contact.t1, after
+            continue
         j, share = _joining_corner(truth, die, height, speed, k)
         if j is not None and truth.friction_rule == "exact":
             path.end = "exact_two_contacts"  # no two-contact exact Coulomb impact here: the track ends

@@ -271,6 +271,119 @@ def test_out_of_library_effects_act_in_flight():
     assert energy(Truth(), lifted) == pytest.approx(energy(Truth(), plain), rel=1e-10)
 
 
+# ----------------------------------------------------------------------------------- physics outside the library (issue 30)
+
+
+@pytest.mark.parametrize("w0", [10.0, -7.0])
+def test_spin_drag_follows_its_closed_form(w0):
+    """d omega/dt = -k |omega| omega: omega(t) = omega0 / (1 + k |omega0| t) and
+    phi(t) = phi0 + sign(omega0) ln(1 + k |omega0| t) / k; the translation is untouched."""
+    k, t = 0.05, 0.2
+    s = simulate_path(Truth(spin_drag=k), (0.0, 0.5, 0.3, 1.0, 0.0, w0), t).com_state(t)
+    assert s[5] == pytest.approx(w0 / (1.0 + k * abs(w0) * t), rel=1e-14)
+    assert s[2] == pytest.approx(0.3 + math.copysign(1.0, w0) * math.log(1.0 + k * abs(w0) * t) / k, rel=1e-14)
+    assert s[:2] == pytest.approx([t, 0.5 - 0.5 * G * t * t], abs=1e-14)
+    # the angular acceleration is -k |omega| omega, by a central difference of the path
+    path = simulate_path(Truth(spin_drag=k), (0.0, 0.5, 0.3, 1.0, 0.0, w0), t)
+    h = 1e-4
+    acc = (path.com_state(0.1 + h)[5] - path.com_state(0.1 - h)[5]) / (2 * h)
+    w = path.com_state(0.1)[5]
+    assert acc == pytest.approx(-k * abs(w) * w, rel=1e-6)
+    # with the Magnus force the integrated translation sees the decaying spin
+    lifted = simulate_path(Truth(magnus=0.05, spin_drag=k), (0.0, 0.5, 0.3, 1.0, 0.0, w0), t).com_state(t)
+    assert lifted[5] == pytest.approx(s[5], rel=1e-14)
+
+
+def test_a_tilted_table_gives_a_parabola_along_it():
+    """In the table's frame gravity is (g sin(tilt), -g cos(tilt)): x and y are parabolas in
+    flight, and energy with the potential g (cos(tilt) y - sin(tilt) x) is conserved."""
+    tilt, t = math.radians(3.0), 0.2
+    truth = Truth(table_tilt=tilt)
+    s = simulate_path(truth, (0.01, 0.5, 0.3, 0.7, 0.4, 5.0), t).com_state(t)
+    assert s[0] == pytest.approx(0.01 + 0.7 * t + 0.5 * G * math.sin(tilt) * t * t, abs=1e-14)
+    assert s[1] == pytest.approx(0.5 + 0.4 * t - 0.5 * G * math.cos(tilt) * t * t, abs=1e-14)
+    assert s[3:] == pytest.approx([0.7 + G * math.sin(tilt) * t, 0.4 - G * math.cos(tilt) * t, 5.0], abs=1e-14)
+    # with drag, numerically: the same parabola as drag goes to zero
+    dragged = simulate_path(Truth(table_tilt=tilt, air_drag=1e-9), (0.01, 0.5, 0.3, 0.7, 0.4, 5.0), t).com_state(t)
+    assert dragged[:2] == pytest.approx(s[:2], abs=1e-9)
+    path = simulate_path(truth, (0.0, 0.15, 0.3, -0.5, -1.9, 6.0), 0.5)
+    assert len(path.impacts) >= 3
+    for t0, t1, flight in path.flights:
+        e = [energy(truth, flight.state(tt)) for tt in np.linspace(t0, t1, 7)]
+        assert np.ptp(e) < 1e-12 * abs(e[0]) + 1e-15
+
+
+@pytest.mark.parametrize("contact", ["rigid", "paper"])
+def test_restitution_by_corner_acts_at_the_touching_corner(contact):
+    """Each corner k falling straight down (no spin, no slip) leaves at beta_k times its speed;
+    a path records each impact's own beta."""
+    betas = (0.2, 0.5, 0.35, 0.6)
+    truth = Truth(contact=contact, corner_beta_normal=betas, beta_normal=0.4)
+    for k, beta in enumerate(betas):
+        phi = -math.pi / 2 - 2 * math.pi * k / 4  # corner k straight down
+        new, info = impact(truth, (0.0, R, phi, 0.0, -2.0, 0.0), k)
+        assert new[3:] == pytest.approx([0.0, 2.0 * beta, 0.0], abs=1e-12), k
+        assert info["beta_n"] == pytest.approx(beta)
+    path = simulate_path(truth, (0.0, 0.15, 0.3, -0.5, -1.9, 6.0), 0.5)
+    assert len(path.impacts) >= 3
+    assert all(h["beta_n"] == pytest.approx(betas[h["corner"]]) for h in path.impacts if h["contacts"] == 1)
+    for bad in ((0.4, 0.4, 0.4), (0.4, 0.4, 0.4, 1.2)):
+        with pytest.raises(ValueError):
+            simulate_path(Truth(corner_beta_normal=bad), (0.0, 0.15, 0.3, -0.5, -1.9, 6.0), 0.1)
+
+
+@pytest.mark.parametrize("beta", [0.2, 0.4, 1 / math.e, 0.9])
+def test_compliant_contact_of_a_point_mass_has_its_restitution_and_duration(beta):
+    """A corner straight down under the centre is a point mass for the normal force (no lever):
+    without gravity it leaves at beta times its speed after exactly the contact time, whatever
+    the speed; the constants follow the closed form of compliant_constants."""
+    duration = 4e-4
+    truth = Truth(compliant_time=duration, beta_normal=beta, friction=0.3, g=0.0)
+    die = ind._Die(truth)
+    for speed in (0.5, 2.0):
+        contact = ind._Contact(truth, die, 0.0, (0.0, R, -math.pi / 2, 0.0, -speed, 0.0))
+        assert contact.ended
+        assert contact.after[3:] == pytest.approx([0.0, beta * speed, 0.0], rel=1e-7, abs=1e-12)
+        assert contact.t1 == pytest.approx(duration, rel=1e-6)
+    stiff, damp = ind.compliant_constants(beta, duration)
+    zeta = damp / (2 * math.sqrt(stiff))
+    f = ind._loading_decay(zeta)
+    assert math.exp(-zeta * f) == pytest.approx(beta, rel=1e-12)
+    assert (f + math.pi / 2) / math.sqrt(stiff) == pytest.approx(duration, rel=1e-12)
+
+
+def test_compliant_contact_sliding_throughout_is_the_coulomb_impulse():
+    """A short compliant contact (1e-5 s: the die turns by 2e-4 rad in it) of a corner straight
+    down that slides all the way: the tangential impulse is -mu times the normal one,
+    (1 + beta) v_n, and it spins the die by R P_t / I about its centre."""
+    mu, beta, vn, vx = 0.1, 0.4, 2.0, 2.0
+    truth = Truth(compliant_time=1e-5, beta_normal=beta, friction=mu, g=0.0)
+    die = ind._Die(truth)
+    contact = ind._Contact(truth, die, 0.0, (0.0, R, -math.pi / 2, vx, -vn, 0.0))
+    pn = (1 + beta) * vn
+    pt = -mu * pn
+    assert contact.after[3:] == pytest.approx([vx + pt, beta * vn, R * pt / (ALPHA * R * R)], rel=2e-3)
+
+
+def test_compliant_tracks_bounce_for_a_while_and_gain_no_energy():
+    truth = Truth(compliant_time=5e-4, beta_normal=0.4, friction=0.3)
+    for state in release_states(6, 3):
+        path = simulate_path(truth, state, 0.5)
+        assert path.impacts and all(h["law"] == "compliant" for h in path.impacts)
+        for h in path.impacts:
+            assert 0.3 * 5e-4 < h["duration"] < 3 * 5e-4
+            assert energy(truth, h["after"]) <= energy(truth, h["before"]) + 1e-12
+        # the frames sample the contact too: never deeper than a millimetre below the table
+        die = ind._Die(truth)
+        for h in path.impacts:
+            for tt in np.linspace(h["t"], h["t"] + h["duration"], 9):
+                assert die.heights(path.com_state(tt)).min() > -1e-3
+    for bad in (dict(compliant_time=2e-3), dict(compliant_time=1e-4), dict(compliant_time=1e-4, friction=0.3, contact_time=1e-4),
+                dict(spin_drag=0.1, spin_damping=1.0), dict(spin_drag=-0.1), dict(table_tilt=2.0)):
+        with pytest.raises(ValueError):
+            simulate_path(Truth(**bad), (0.0, 0.15, 0.3, -0.5, -1.9, 6.0), 0.1)
+
+
 # ----------------------------------------------------------------------------------- inertia, friction rules, rounded corners
 
 
