@@ -1,0 +1,112 @@
+"""The pieces of diagnose's cross-fitting and of its cause-or-stand-in test (issue 30, items 1-3):
+parts of a set of segments, the folds, the selection rule against heavy tails, the union of
+the folds' effects, and the z-test of two parts' values. The loop itself runs in
+tests/measured/test_diagnose.py."""
+
+import math
+
+import numpy as np
+import pytest
+
+from dice_sweep.config import parse_config
+from dice_sweep.measured import consistency
+from dice_sweep.measured import diagnose as loop
+from dice_sweep.measured import fit as shooting
+from dice_sweep.measured.split import MIN_TRACKS, cross_fit_folds, cross_fit_tracks
+from dice_sweep.measured.tracks import load_tracks
+from tests.measured.cases import DECLARED_RIGID, NOISE, RADIUS, TRUTH
+from tests.measured.independent import Truth, simulate_drops, write_csv
+
+CFG = parse_config(DECLARED_RIGID)
+
+
+@pytest.fixture(scope="module")
+def tracks(tmp_path_factory):
+    path = tmp_path_factory.mktemp("crossfit") / "drops.csv"
+    write_csv(path, simulate_drops(Truth(**TRUTH), 20, 3, rate=500.0, noise=NOISE))
+    return load_tracks(path, sides=4, circumradius=RADIUS)
+
+
+def test_a_subset_of_segments_is_the_segments_of_its_tracks(tracks):
+    cross = cross_fit_tracks(tracks, CFG, seed=1)
+    whole = cross.segments
+    for k in range(cross.folds):
+        train, seg_train, train_set, test, seg_test = cross.part(k)
+        part = whole.subset(test[whole.track])
+        assert {p.traj for p in train} == {t.traj for t in train_set.tracks}
+        assert seg_train.tracks + seg_test.tracks == whole.tracks
+        for name in ("count", "tracks"):
+            assert getattr(part, name) == getattr(seg_test, name)
+        for name in ("track", "starts", "times", "measured", "predicted", "track_rows", "segment_rows", "track_starts",
+                     "track_segment_starts", "guess"):
+            assert np.array_equal(getattr(part, name), getattr(seg_test, name)), name
+        # the frames keep the whole set's numbering: they are the rows' frames in it
+        assert np.array_equal(part.frame_rows, whole.frame_rows[test[whole.track_rows]])
+
+
+def test_the_first_flights_are_a_part_too(tracks):
+    whole = cross_fit_tracks(tracks, CFG).segments
+    first = consistency.flight_index(whole) == 0
+    assert first.sum() == whole.tracks
+    part = whole.subset(first)
+    assert part.count == part.tracks == whole.tracks and np.array_equal(part.track, np.arange(whole.tracks))
+    later = whole.subset(~first)
+    assert later.count == whole.count - whole.tracks
+
+
+def test_folds_are_halves_unless_the_tracks_are_few():
+    assert cross_fit_folds(90) == 2 and cross_fit_folds(16) == 2
+    assert cross_fit_folds(14) == 3  # halves of 7 would choose on fewer than MIN_TRACKS
+    for count in range(10, 40):
+        k = cross_fit_folds(count)
+        assert count - math.ceil(count / k) >= MIN_TRACKS
+    assert cross_fit_folds(9) is None
+
+
+def _result(e_current, e_cand, floor=1.0):
+    worse, better = loop._marked(np.array(e_current), np.array(e_cand), floor)
+    return {"significant": True, "null_excluded": True, "excess_share": 0.5, "at_bound": [],
+            "median_falls": bool(np.median(e_cand) < np.median(e_current)),
+            "rms_falls": bool(shooting.rms(e_cand) < shooting.rms(e_current)), "worse_tracks": worse, "better_tracks": better,
+            "worse_within_share": bool(worse <= loop.MAX_WORSE_SHARE * (worse + better))}
+
+
+def test_heavy_tails_cannot_pass():
+    current = np.full(20, 3.0)
+    # the median falls, a few tracks blow up: the RMS rises (the issue's friction, 5.7 -> 19.4 mm)
+    blown = np.r_[np.full(17, 2.0), [30.0, 30.0, 30.0]]
+    assert not loop._passes(_result(current, blown))
+    # the RMS falls, the typical track gets worse
+    lifted = np.r_[np.full(12, 3.2), np.full(8, 1.0)]
+    assert shooting.rms(lifted) < shooting.rms(current) and not loop._passes(_result(current, lifted))
+    # both fall, but 5 of the 16 tracks that move by more than half the floor get worse
+    mixed = np.r_[np.full(11, 1.0), np.full(5, 4.2), np.full(4, 3.0)]
+    assert shooting.rms(mixed) < shooting.rms(current) and np.median(mixed) < 3.0
+    assert not loop._passes(_result(current, mixed))
+    # a real gain: most tracks better, one worse
+    gain = np.r_[np.full(18, 1.5), [3.6], [3.0]]
+    assert loop._passes(_result(current, gain))
+
+
+def test_the_named_model_takes_each_folds_effects_once():
+    def model(*effects):
+        return shooting.FitResult(shooting.ModelSpec.of(CFG, effects), {}, np.zeros((0, 6)), (), 0.0, 0, True, {})
+
+    assert loop._union([model("air_drag"), model("com_offset", "air_drag")]) == ["air_drag", "com_offset"]
+    # indistinguishable effects are named once; two friction rules never together (the one more folds chose)
+    assert loop._union([model("gravity"), model("time_scale")]) == ["gravity"]
+    assert loop._union([model("sliding_friction"), model("exact_coulomb"), model("exact_coulomb")]) == ["exact_coulomb"]
+
+
+def test_two_parts_agree_within_their_intervals():
+    def part(value, low, high):
+        return {"params": {"g": {"value": value, "ci95": [low, high], "identified": True}}}
+
+    same = consistency.compare("g", part(9.30, 9.28, 9.32), part(9.31, 9.29, 9.33))
+    assert same["agree"] and abs(same["z"]) < 1
+    apart = consistency.compare("g", part(9.30, 9.28, 9.32), part(9.40, 9.38, 9.42))
+    # sd = 0.02 / 1.96 on each side: z = -0.1 / (sqrt(2) * 0.0102) = -6.9
+    assert not apart["agree"] and apart["z"] == pytest.approx(-0.1 / (math.sqrt(2) * 0.02 / 1.959963984540054))
+    blind = consistency.compare("g", part(9.30, 9.28, 9.32), {"params": {"g": {"value": 9.5, "ci95": [math.nan, math.nan],
+                                                                                 "identified": False}}})
+    assert blind["agree"] and not blind["testable"]
