@@ -21,8 +21,8 @@ An effect that improves the fit is called a *cause* only if it passes two tests;
    any |z| exceeds ``Z_AGREE``. A side that does not identify the parameter (no interval)
    cannot test it: that comparison is reported as ``untestable`` and does not fail.
 2. **Its signature was there before.** The residual signature the registry says the effect
-   leaves (:mod:`dice_sweep.measured.signatures`) was among the declared model's remaining
-   signatures on all tracks (an effect without a signature in the registry passes).
+   leaves (:mod:`dice_sweep.measured.signatures`) was in the declared model's residual on all
+   tracks (:func:`signature_present`; an effect without a signature in the registry passes).
 
 docs/measured_method.md ("Cause or stand-in") gives the calibration.
 """
@@ -35,7 +35,6 @@ import numpy as np
 from dice_sweep import effects as registry
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.reduced import parameter_intervals, reduce
-from dice_sweep.measured.signatures import remaining_signatures
 from dice_sweep.measured.stats import Z95
 
 # |z| beyond which two parts' values disagree: two-sided 1 % (2.58). Not the 5 % quantile: the
@@ -47,8 +46,8 @@ SPLITS = ("track_halves", "first_vs_later_flights")
 TEST = (f"the final model fitted on each side of two splits, its states warm from the fit on all tracks: the two halves of the "
         f"tracks of the cross-fitting, and the first flight of every track (with the first, fastest impact) against the later "
         f"flights; for each parameter of the effect z = (a - b) / sqrt(sd_a^2 + sd_b^2), sd from each side's 95 % interval "
-        f"(width / 3.92); a cause needs every |z| <= {Z_AGREE:.2f} and the effect's residual signature among the declared "
-        f"model's remaining signatures before it was added")
+        f"(width / 3.92); a cause needs every |z| <= {Z_AGREE:.2f} and the effect's residual signature in the declared model's "
+        f"residual on all tracks (signed: interval excludes 0; impact prediction: above 0; wobble: above half the floor)")
 
 
 def flight_index(segments):
@@ -85,6 +84,21 @@ def compare(name, first, second):
             "z": z, "agree": bool(not math.isfinite(z) or abs(z) <= Z_AGREE), "testable": bool(math.isfinite(z))}
 
 
+def signature_present(entry, floor):
+    """Whether a signature (:func:`dice_sweep.measured.signatures.residual_signatures`'s entry)
+    is in a residual: a signed one when its 95 % interval excludes 0; the impact prediction's
+    extra error when its interval lies above 0; the wobble at the spin angle, an amplitude that
+    the noise alone keeps above 0, when its interval lies above half the noise floor."""
+    if not entry or entry.get("value") is None or not np.isfinite(entry["value"]):
+        return False
+    low, high = entry["ci95"]
+    if entry["signature"] == "flight_wobble_at_spin":
+        return bool(low > 0.5 * floor)
+    if entry["signature"] == "impact_prediction":
+        return bool(low > 0.0)
+    return bool(not low <= 0.0 <= high)
+
+
 def _part_fit(task):
     """:func:`part_fit` of one task (runs in a worker)."""
     cfg, fit, segments, keep, seed, sigmas, bootstrap = task
@@ -103,7 +117,7 @@ def consistency(cfg, fit, segments, halves, signatures_before, floor, seed, sigm
     signatures_before : list
         :func:`dice_sweep.measured.signatures.residual_signatures` of the declared model on all tracks.
     floor : float
-        The noise floor (m), for :func:`~dice_sweep.measured.signatures.remaining_signatures`.
+        The noise floor (m), for :func:`signature_present`.
     effects : list, optional
         The effects to judge (default: the model's added effects).
     mapper : callable, optional
@@ -124,7 +138,6 @@ def consistency(cfg, fit, segments, halves, signatures_before, floor, seed, sigm
     tasks = [(cfg, fit, segments, keep, [seed, k], sigmas, bootstrap) for k, keep in enumerate(keep for pair in sides.values() for keep in pair)]
     fitted = (mapper or (lambda f, items: [f(item) for item in items]))(_part_fit, tasks)
     parts = {split: fitted[2 * k:2 * k + 2] for k, split in enumerate(sides)}
-    remaining = set(remaining_signatures(signatures_before, floor))
     by_name = {s["signature"]: s for s in signatures_before}
     out = {}
     for name in effects:
@@ -139,7 +152,7 @@ def consistency(cfg, fit, segments, halves, signatures_before, floor, seed, sigm
                 comparisons.append(entry)
         signature = registry.effect(name).signature
         before = by_name.get(signature, {})
-        present = not signature or signature in remaining
+        present = not signature or signature_present(before, floor)
         failed = [f"{c['split']}: {c['param']} z = {c['z']:.2f}" for c in comparisons if not c["agree"]]
         if not present:
             failed.append(f"signature {signature} not present before the effect was added")

@@ -608,9 +608,12 @@ def _all_tracks_fit(task):
 
 
 def _verdict(median, floor, named, stand_ins):
+    """explained: the median held-out error within EXPLAINED_FACTOR x the floor and no stand-in
+    named; improved: a cause named, not explained; unexplained: no cause named (nothing, or
+    stand-ins alone), not explained."""
     if median <= EXPLAINED_FACTOR * floor and not stand_ins:
         return "explained"
-    return "improved" if named else "unexplained"
+    return "improved" if set(named) - set(stand_ins) else "unexplained"
 
 
 def _resplits(cfg, final, red, cross, floor, named, stand_ins, seed, count):
@@ -730,7 +733,8 @@ def diagnose(trackset, cfg, *, seed=0, folds=FOLDS, cross_folds=CROSS_FOLDS, can
         "verdict": verdict,
         "verdict_rule": (f"from every track's held-out error ({cross.folds}-fold cross-fitting: each fold's effects chosen and fitted "
                          f"on the other folds' tracks): explained: median per-track error <= {EXPLAINED_FACTOR} x noise_floor and no "
-                         "effect named a stand_in; improved: effects named, not explained; unexplained: nothing named, above"),
+                         "effect named a stand_in; improved: an effect named a cause, not explained; unexplained: no cause named "
+                         "(nothing, or stand-ins alone), not explained"),
         "verdict_spread": {"verdicts": [s["verdict"] for s in spread], "splits": spread, "agree": len({s["verdict"] for s in spread}) == 1,
                            "method": (f"the verdict of the cross-fitting, then of {resplits} re-splits of the tracks in halves (other "
                                       "seeds), each half predicted by the named model's effect set refitted on the other half (one "

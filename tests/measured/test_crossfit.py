@@ -110,3 +110,27 @@ def test_two_parts_agree_within_their_intervals():
     blind = consistency.compare("g", part(9.30, 9.28, 9.32), {"params": {"g": {"value": 9.5, "ci95": [math.nan, math.nan],
                                                                                  "identified": False}}})
     assert blind["agree"] and not blind["testable"]
+
+
+def test_a_signature_is_present_when_its_interval_says_so():
+    floor = 3e-4
+
+    def entry(name, low, high):
+        return {"signature": name, "value": (low + high) / 2, "ci95": [low, high]}
+
+    assert consistency.signature_present(entry("flight_deceleration", 0.2, 0.5), floor)
+    assert not consistency.signature_present(entry("flight_deceleration", -0.05, 0.003), floor)
+    assert consistency.signature_present(entry("impact_prediction", 9e-6, 5e-5), floor)  # inertia 0.8 of eq. 25's
+    assert not consistency.signature_present(entry("impact_prediction", -5e-5, 1e-4), floor)
+    # the wobble is an amplitude: the noise keeps it above 0, so it counts above half the floor
+    assert not consistency.signature_present(entry("flight_wobble_at_spin", 9e-5, 2e-4), floor)
+    assert consistency.signature_present(entry("flight_wobble_at_spin", 1.4e-3, 1.7e-3), floor)
+    assert not consistency.signature_present({"signature": "flight_deceleration", "value": None, "ci95": [None, None]}, floor)
+
+
+def test_a_verdict_with_stand_ins_alone_names_no_cause():
+    assert loop._verdict(1.0, 1.0, ["air_drag"], []) == "explained"
+    assert loop._verdict(1.0, 1.0, ["table_offset"], ["table_offset"]) == "unexplained"  # within the floor, but by a stand-in
+    assert loop._verdict(1.0, 1.0, ["air_drag", "table_offset"], ["table_offset"]) == "improved"
+    assert loop._verdict(2.0, 1.0, [], []) == "unexplained"
+    assert loop._verdict(2.0, 1.0, ["air_drag"], []) == "improved"
