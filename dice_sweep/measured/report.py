@@ -131,6 +131,11 @@ def _round_table(label, results):
     return lines
 
 
+def _presence(signature):
+    state = {True: "present", False: "absent", None: "not measured"}[signature["present_before"]]
+    return state + ("" if signature["counts"] else " (does not count)")
+
+
 def _z(value):
     return "n/a" if value is None or not math.isfinite(value) else f"z = {value:.2f}"
 
@@ -179,7 +184,7 @@ def markdown_report(report):
             tests = "; ".join(f"{x['split']}: {x['param']} {_z(x['z'])}" for x in c["comparisons"]) or "no parameter"
             sig = c["signature"]
             lines.append(f"| {name} | {entry['cause']} | {'; '.join(c['failed']) or '-'} | {tests} | "
-                         f"{sig['name'] or 'none'}: {'present' if sig['present_before'] else 'absent'} |")
+                         f"{sig['name'] or 'none'}: {_presence(sig)} |")
         lines.append("")
     lines += ["## Before and after, every track held out (cross-fitting)", "",
               "| model | effects | RMS over tracks | 95 % interval | x floor | median track | 95 % interval | x floor |",

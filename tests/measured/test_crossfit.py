@@ -125,7 +125,7 @@ def test_a_signature_is_present_when_its_interval_says_so():
     # the wobble is an amplitude: the noise keeps it above 0, so it counts above half the floor
     assert not consistency.signature_present(entry("flight_wobble_at_spin", 9e-5, 2e-4), floor)
     assert consistency.signature_present(entry("flight_wobble_at_spin", 1.4e-3, 1.7e-3), floor)
-    assert not consistency.signature_present({"signature": "flight_deceleration", "value": None, "ci95": [None, None]}, floor)
+    assert consistency.signature_present({"signature": "flight_deceleration", "value": None, "ci95": [None, None]}, floor) is None
 
 
 def test_a_verdict_with_stand_ins_alone_names_no_cause():
