@@ -308,6 +308,32 @@ def test_physics_outside_the_library_is_unexplained(tmp_path, outside):
     assert report["proposals"]  # a formula for what is left
 
 
+# Issue 30: two draws of one physics get one verdict (before cross-fitting, two draws of 36
+# drops with inertia 0.8 of eq. 25's got `explained` at 1.56 times the floor and `unexplained`
+# at 6.2 times, each from its 11 confirmation tracks). Inertia is in the library now: seeds 1
+# and 2 name it a cause (0.8006 and 0.8011 on the two halves of seed 1, z = -0.7), median
+# 0.99 and 1.05 times the floor. A compliant contact of 0.5 ms is not: seed 1 names
+# table_offset, seed 2 table_offset and g, each a stand-in (first against later flights:
+# table_offset -1.29 against -0.20 mm, z = -8.8; z = -6.7 and -5.0 on seed 2), so no cause:
+# `unexplained` both times, with a formula proposed for what is left.
+SAME_PHYSICS = {"inertia": ({"inertia": 0.8}, "explained"), "compliant": ({"compliant_time": 5e-4}, "unexplained")}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", list(SAME_PHYSICS))
+def test_the_same_physics_drawn_twice_gets_the_same_verdict(tmp_path, case):
+    physics, verdict = SAME_PHYSICS[case]
+    reports = [run_loop(tmp_path, dict(TRUTH, **physics), seed=seed) for seed in (1, 2)]
+    assert [r["verdict"] for r in reports] == [verdict, verdict], [
+        (r["verdict"], causes(r), r["after"]["median_multiple_of_floor"]) for r in reports]
+    for report in reports:
+        if case == "inertia":
+            assert causes(report) == {"inertia": "cause"}, report["effects"]
+        else:
+            assert set(causes(report).values()) <= {"stand_in"}, report["effects"]
+            assert report["proposals"]
+
+
 @pytest.fixture(scope="module")
 def four_times_the_noise(tmp_path_factory):
     return run_loop(tmp_path_factory.mktemp("noise4"), dict(TRUTH, air_drag=0.8), noise=(8e-4, 16e-3))
