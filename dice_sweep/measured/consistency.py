@@ -13,7 +13,11 @@ An effect that improves the fit is called a *cause* only if it passes two tests;
      prediction crosses (the fastest impact, from the release height) against the later flights
      and impacts (slower, the die spinning after the first bounce). A stand-in for a contact
      that depends on the impact speed (a compliant contact, a speed-dependent restitution)
-     takes another value on each side; a real table offset, g or drag takes the same.
+     takes another value on each side; a real table offset, g or drag takes the same;
+   * ``direction_of_motion``: the flights moving towards -x against those moving towards +x
+     (the sign of vx in the segment's fitted state). Every effect of the library is the same
+     in a mirror; a tilted table is not, and drag standing in for it (a deceleration along
+     the motion for an acceleration along the table) takes another value on each side.
 
    For every parameter of the effect and every split, z = (a - b) / sqrt(sd_a^2 + sd_b^2),
    sd = the width of each side's 95 % interval (:func:`dice_sweep.measured.reduced.parameter_intervals`:
@@ -44,13 +48,14 @@ from dice_sweep.measured.stats import Z95
 
 # |z| beyond which two parts' values disagree: two-sided 1 % (2.58). Not the 5 % quantile: the
 # intervals are about 1.3 times too narrow for some parameters (docs/dev/measured_intervals.md),
-# and two splits are tested per parameter.
+# and three splits are tested per parameter.
 Z_AGREE = NormalDist().inv_cdf(1.0 - 0.01 / 2.0)
 PART_ITERATIONS = 40
-SPLITS = ("track_halves", "first_vs_later_flights")
-TEST = (f"the final model fitted on each side of two splits, its states warm from the fit on all tracks: the two halves of the "
-        f"tracks of the cross-fitting, and the first flight of every track (with the first, fastest impact) against the later "
-        f"flights; for each parameter of the effect z = (a - b) / sqrt(sd_a^2 + sd_b^2), sd from each side's 95 % interval "
+MIN_PART_SEGMENTS = 8  # flights a side of a split needs to be fitted
+SPLITS = ("track_halves", "first_vs_later_flights", "direction_of_motion")
+TEST = (f"the final model fitted on each side of three splits, its states warm from the fit on all tracks: the two halves of "
+        f"the tracks of the cross-fitting, the first flight of every track (with the first, fastest impact) against the later "
+        f"flights, and the flights moving towards -x against those moving towards +x; for each parameter of the effect z = (a - b) / sqrt(sd_a^2 + sd_b^2), sd from each side's 95 % interval "
         f"(width / 3.92); a cause needs every |z| <= {Z_AGREE:.2f} and, for an effect with a flight signature, that signature in the "
         f"declared model's residual on all tracks (signed: interval excludes 0; wobble: above half the floor; the impact "
         f"prediction's signature does not count)")
@@ -143,11 +148,14 @@ def consistency(cfg, fit, segments, halves, signatures_before, floor, seed, sigm
     if not effects:
         return {}
     first = flight_index(segments) == 0
+    leftward = fit.states[:, 3] < 0.0
     sides = {"track_halves": (np.asarray(halves, dtype=bool), ~np.asarray(halves, dtype=bool)),
-             "first_vs_later_flights": (first, ~first)}
-    tasks = [(cfg, fit, segments, keep, [seed, k], sigmas, bootstrap) for k, keep in enumerate(keep for pair in sides.values() for keep in pair)]
+             "first_vs_later_flights": (first, ~first), "direction_of_motion": (leftward, ~leftward)}
+    # a split with too few flights on a side is not fitted (its comparisons are left out)
+    usable = [split for split, pair in sides.items() if min(int(pair[0].sum()), int(pair[1].sum())) >= MIN_PART_SEGMENTS]
+    tasks = [(cfg, fit, segments, keep, [seed, k], sigmas, bootstrap) for k, keep in enumerate(keep for split in usable for keep in sides[split])]
     fitted = (mapper or (lambda f, items: [f(item) for item in items]))(_part_fit, tasks)
-    parts = {split: fitted[2 * k:2 * k + 2] for k, split in enumerate(sides)}
+    parts = {split: fitted[2 * k:2 * k + 2] for k, split in enumerate(usable)}
     by_name = {s["signature"]: s for s in signatures_before}
     out = {}
     for name in effects:

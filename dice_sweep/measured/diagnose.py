@@ -23,7 +23,7 @@ The steps (docs/measured_method.md states them for users):
    excludes the null value; (c) it removes at least ``MIN_EXCESS_SHARE`` of the error in excess
    of the noise floor; (d) both the held-out RMS over tracks and the median per-track error
    fall (heavy tails: the RMS alone can fall by a few tracks, the median alone while a few
-   tracks blow up); (e) of the tracks whose error it moves by more than ``MARKED`` times the
+   tracks blow up; the RMS with the one track that changes most left out); (e) of the tracks whose error it moves by more than ``MARKED`` times the
    noise floor, at most ``MAX_WORSE_SHARE`` get worse (its share).
 5. The named model: the effects the folds added, refitted on all tracks; one whose 95 %
    interval then holds its null value is taken out. Each named effect is a ``cause`` or a
@@ -359,10 +359,24 @@ def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, sig
             "z": signed_rank_z(e_current**2 - e_cand**2), "params": params, "null_excluded": bool(excluded),
             "excess_share": excess_share(e_current, e_cand, floor), "test_error": shooting.rms(e_cand),
             "median_error": float(np.median(e_cand)), "median_falls": bool(np.median(e_cand) < np.median(e_current)),
-            "rms_falls": bool(shooting.rms(e_cand) < shooting.rms(e_current)), "worse_tracks": worse, "better_tracks": better,
+            "rms_falls": _rms_falls(e_current, e_cand), "rms_falls_all_tracks": bool(shooting.rms(e_cand) < shooting.rms(e_current)),
+            "worse_tracks": worse, "better_tracks": better,
             "worse_share": worse / (worse + better) if worse + better else 0.0,
             "worse_within_share": bool(worse <= MAX_WORSE_SHARE * (worse + better)),
             "at_bound": [n for n in new if params[n]["at_bound"]], "converged": cand.converged, "iterations": cand.iterations}
+
+
+def _rms_falls(e_current, e_cand):
+    """Whether the RMS over tracks of the held-out errors falls, the one track whose squared
+    error changes most left out: no single track decides (as for a parameter,
+    ``one_track_decides``). On loaded-die drops com_offset (really there) made 43 of 45 tracks
+    better at z = 5.3, and one track whose prediction crosses a near-flat landing so much worse
+    that the RMS over all 45 rose; three tracks blown up still count."""
+    e_current, e_cand = np.asarray(e_current, dtype=float), np.asarray(e_cand, dtype=float)
+    keep = np.ones(e_current.size, dtype=bool)
+    if e_current.size > 2:
+        keep[np.nanargmax(np.abs(e_cand**2 - e_current**2))] = False
+    return bool(shooting.rms(e_cand[keep]) < shooting.rms(e_current[keep]))
 
 
 def _marked(e_current, e_cand, floor):

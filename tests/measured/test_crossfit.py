@@ -67,7 +67,7 @@ def _result(e_current, e_cand, floor=1.0):
     worse, better = loop._marked(np.array(e_current), np.array(e_cand), floor)
     return {"significant": True, "null_excluded": True, "excess_share": 0.5, "at_bound": [],
             "median_falls": bool(np.median(e_cand) < np.median(e_current)),
-            "rms_falls": bool(shooting.rms(e_cand) < shooting.rms(e_current)), "worse_tracks": worse, "better_tracks": better,
+            "rms_falls": loop._rms_falls(np.array(e_current), np.array(e_cand)), "worse_tracks": worse, "better_tracks": better,
             "worse_within_share": bool(worse <= loop.MAX_WORSE_SHARE * (worse + better))}
 
 
@@ -86,6 +86,11 @@ def test_heavy_tails_cannot_pass():
     # a real gain: most tracks better, one worse
     gain = np.r_[np.full(18, 1.5), [3.6], [3.0]]
     assert loop._passes(_result(current, gain))
+    # ... even when that one track (a prediction across a near-flat landing) lifts the RMS over all
+    chaotic = np.r_[np.full(19, 1.5), [12.0]]
+    assert shooting.rms(chaotic) > shooting.rms(current) and loop._passes(_result(current, chaotic))
+    # two such tracks decide it
+    assert not loop._passes(_result(current, np.r_[np.full(18, 1.5), [12.0, 12.0]]))
 
 
 def test_the_named_model_takes_each_folds_effects_once():
