@@ -57,7 +57,7 @@ from dice_sweep.executor import default_workers, ordered_map
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured import propose
 from dice_sweep.measured.calibrate import calibrate
-from dice_sweep.measured.consistency import consistency
+from dice_sweep.measured.consistency import consistency, left_where_it_acts
 from dice_sweep.measured.fit import relative_gain as relative_fall
 from dice_sweep.measured.noise import residual_sigmas
 from dice_sweep.measured.reduced import bootstrap_record, cv_errors, effect_away_from_null, parameter_intervals, project, reduce
@@ -722,22 +722,22 @@ def diagnose(trackset, cfg, *, seed=0, folds=FOLDS, cross_folds=CROSS_FOLDS, can
     halves = (cross.fold < max(cross.folds // 2, 1))[seg_all.track]
     judged = consistency(cfg, current, seg_all, halves, signatures_before, floor, [seed, 99], sigmas, bootstrap,
                          mapper=lambda f, tasks: _map(f, tasks, workers))
-    stand_ins = [name for name in named if judged[name]["cause"] == "stand_in"]
-    for name in named:
-        say(f"{name}: {judged[name]['cause']}" + (f" ({'; '.join(judged[name]['consistency']['failed'])})" if name in stand_ins else ""))
-
     after_error = shooting.rms(e_after)
     median_before, median_before_ci = median_interval(e_before, rng, bootstrap)
     median_after, median_after_ci = median_interval(e_after, rng, bootstrap)
+    proposal_report = None
+    if proposals and median_after > EXPLAINED_FACTOR * floor:
+        say(f"the error is {median_after / floor:.1f} x the noise floor: proposals for what the named model leaves")
+        proposal_report = propose.propose_report(trackset, cfg, current, sigma=cross.sigma, table=cross.table, prepared=prepared, seed=seed)
+        left_where_it_acts(judged, proposal_report["proposals"])
+    stand_ins = [name for name in named if judged[name]["cause"] == "stand_in"]
+    for name in named:
+        say(f"{name}: {judged[name]['cause']}" + (f" ({'; '.join(judged[name]['consistency']['failed'])})" if name in stand_ins else ""))
     verdict = _verdict(median_after, floor, named, stand_ins)
     spread = [{"split": f"cross-fitting, seed {seed}", "verdict": verdict, "median_error": median_after,
                "median_multiple_of_floor": median_after / floor, "test_error": after_error}]
     spread += _resplits(cfg, current, red, cross, floor, named, stand_ins, seed, resplits)
     signatures = residual_signatures(prepared, seg_all, lin.residual, cfg.die.circumradius)
-    proposal_report = None
-    if proposals and median_after > EXPLAINED_FACTOR * floor:
-        say(f"the error is {median_after / floor:.1f} x the noise floor: proposals for what the final model leaves")
-        proposal_report = propose.propose_report(trackset, cfg, current, sigma=cross.sigma, table=cross.table, prepared=prepared, seed=seed)
     trajs = [p.traj for p in prepared]
     chain = [dict(step, fold=k) for k, sel in enumerate(selections) for step in sel["chain"]]
     rounds = [dict(rnd, fold=k) for k, sel in enumerate(selections) for rnd in sel["rounds"]]

@@ -139,3 +139,17 @@ def test_a_verdict_with_stand_ins_alone_names_no_cause():
     assert loop._verdict(1.0, 1.0, ["air_drag", "table_offset"], ["table_offset"]) == "improved"
     assert loop._verdict(2.0, 1.0, [], []) == "unexplained"
     assert loop._verdict(2.0, 1.0, ["air_drag"], []) == "improved"
+
+
+def test_an_effect_that_leaves_a_formula_where_it_acts_is_a_stand_in():
+    def judged(*names):
+        return {name: {"cause": "cause", "consistency": {"passed": True, "failed": []}} for name in names}
+
+    # drag named for a table tilted by 3 degrees (seed 1): flight.x_acc ~ 1 (0.50 m/s^2) left
+    tilt = [{"target": "flight.x_acc", "terms": {"1": 0.5013, "vx": 0.1174}, "heldout_gain": 0.989},
+            {"target": "impact.dvy", "terms": {"u_n": 0.0127}, "heldout_gain": 0.145}]
+    out = consistency.left_where_it_acts(judged("air_drag", "inertia", "table_offset"), tilt)
+    assert out["air_drag"]["cause"] == "stand_in" and [p["target"] for p in out["air_drag"]["consistency"]["left"]] == ["flight.x_acc"]
+    assert out["inertia"]["cause"] == "stand_in"  # a contact effect, and an impact formula left
+    assert out["table_offset"]["cause"] == "cause"  # measurement effects act everywhere: not tested so
+    assert consistency.left_where_it_acts(judged("air_drag"), [])["air_drag"]["cause"] == "cause"
