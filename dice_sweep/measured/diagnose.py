@@ -354,19 +354,19 @@ def _test_fit(cfg, cand, names, segments, fold, e_current, floor, bootstrap, sig
     _, params = parameter_intervals(cand, cand_red, segments, cfg, rng, sigmas, bootstrap)
     excluded = all(effect_away_from_null(name, params, cfg) for name in names)
     new = [p.name for name in names for p in registry.effect(name).params]
-    worse, better = _marked(e_current, e_cand, floor)
+    worse, better = marked_tracks(e_current, e_cand, floor)
     return {"effect": "+".join(names), "effects": list(names), "fit": cand, "red": cand_red, "errors": e_cand,
             "z": signed_rank_z(e_current**2 - e_cand**2), "params": params, "null_excluded": bool(excluded),
             "excess_share": excess_share(e_current, e_cand, floor), "test_error": shooting.rms(e_cand),
             "median_error": float(np.median(e_cand)), "median_falls": bool(np.median(e_cand) < np.median(e_current)),
-            "rms_falls": _rms_falls(e_current, e_cand), "rms_falls_all_tracks": bool(shooting.rms(e_cand) < shooting.rms(e_current)),
+            "rms_falls": rms_falls(e_current, e_cand), "rms_falls_all_tracks": bool(shooting.rms(e_cand) < shooting.rms(e_current)),
             "worse_tracks": worse, "better_tracks": better,
             "worse_share": worse / (worse + better) if worse + better else 0.0,
             "worse_within_share": bool(worse <= MAX_WORSE_SHARE * (worse + better)),
             "at_bound": [n for n in new if params[n]["at_bound"]], "converged": cand.converged, "iterations": cand.iterations}
 
 
-def _rms_falls(e_current, e_cand):
+def rms_falls(e_current, e_cand):
     """Whether the RMS over tracks of the held-out errors falls, the one track whose squared
     error changes most left out: no single track decides (as for a parameter,
     ``one_track_decides``). On loaded-die drops com_offset (really there) made 43 of 45 tracks
@@ -379,7 +379,7 @@ def _rms_falls(e_current, e_cand):
     return bool(shooting.rms(e_cand[keep]) < shooting.rms(e_current[keep]))
 
 
-def _marked(e_current, e_cand, floor):
+def marked_tracks(e_current, e_cand, floor):
     """(tracks made worse, tracks made better) by more than MARKED x the noise floor."""
     change = np.asarray(e_cand) - np.asarray(e_current)
     return int(np.sum(change > MARKED * floor)), int(np.sum(change < -MARKED * floor))
@@ -400,7 +400,7 @@ def _untried(pool, spec):
     return tried
 
 
-def _passes(result):
+def candidate_passes(result):
     """Whether a tested candidate is added (``significant`` set from the round's threshold)."""
     return bool(result["significant"] and result["null_excluded"] and result["excess_share"] >= MIN_EXCESS_SHARE
                 and result["median_falls"] and result["rms_falls"] and result["worse_within_share"] and not result["at_bound"])
@@ -519,7 +519,7 @@ def _select(cfg, seg, prepared, select_set, *, floor, sigmas, rng, seed, folds, 
         threshold, sidak, sims = _null_threshold(cfg, current, lin, null_lins, seg, fold, sigmas, rng, null_simulations)
         for r in results:
             r["significant"] = r["z"] > threshold
-            r["accepted"] = _passes(r)
+            r["accepted"] = candidate_passes(r)
         results.sort(key=lambda r: -r["z"])
         rounds.append({"threshold_z": threshold, "sidak_z": sidak, "null_simulations": sims,
                        "candidates": [{k: v for k, v in r.items() if k not in ("fit", "red", "errors")} for r in results]})
@@ -532,7 +532,7 @@ def _select(cfg, seg, prepared, select_set, *, floor, sigmas, rng, seed, folds, 
             pair_threshold = max(threshold, sidak_bound(len(results) + len(pairs)))
             for pair in tested:
                 pair["significant"] = pair["z"] > pair_threshold
-                pair["accepted"] = _passes(pair)
+                pair["accepted"] = candidate_passes(pair)
                 say(f"  + {pair['effect']} together: held-out {pair['test_error'] * 1000:.3f} mm, z = {pair['z']:.2f}, "
                     f"share of excess {pair['excess_share']:.0%}, worse/better tracks {pair['worse_tracks']}/{pair['better_tracks']}, "
                     f"null excluded: {pair['null_excluded']}, added: {pair['accepted']}")
@@ -616,7 +616,7 @@ def _cross_fold(task):
     return sel, confirmation_errors(cfg, sel["baseline"], seg_test, held=True), confirmation_errors(cfg, sel["current"], seg_test, held=True)
 
 
-def _union(models):
+def named_effects(models):
     """The effects the folds' models added, in the order first added, one of each set of
     indistinguishable effects (``equivalent``) and of effects that switch one config key to
     different values (the one more folds chose, else the first)."""
@@ -649,7 +649,7 @@ def _all_tracks_fit(task):
     return shooting.fit_spec(cfg, spec, segments, start=start, states=states, max_iterations=POLISH_ITERATIONS)
 
 
-def _verdict(median, floor, named, stand_ins):
+def verdict_of(median, floor, named, stand_ins):
     """explained: the median held-out error within EXPLAINED_FACTOR x the floor and no stand-in
     named; improved: a cause named, not explained; unexplained: no cause named (nothing, or
     stand-ins alone), not explained."""
@@ -667,7 +667,7 @@ def _resplits(cfg, final, red, cross, floor, named, stand_ins, seed, count):
         fold = assign_folds(cross.prepared, 2, f"resplit:{seed}:{k}")
         errors = cv_errors(red, cross.segments, fold, list(final.free), final.params, cfg)
         median = float(np.median(errors[np.isfinite(errors)]))
-        out.append({"split": f"resplit {k}", "verdict": _verdict(median, floor, named, stand_ins), "median_error": median,
+        out.append({"split": f"resplit {k}", "verdict": verdict_of(median, floor, named, stand_ins), "median_error": median,
                     "median_multiple_of_floor": median / floor, "test_error": shooting.rms(errors)})
     return out
 
@@ -728,7 +728,7 @@ def diagnose(trackset, cfg, *, seed=0, folds=FOLDS, cross_folds=CROSS_FOLDS, can
     # each track's states as its held-out prediction fitted them
     baselines, finals = [s["baseline"] for s in selections], [s["current"] for s in selections]
     spec_base = shooting.ModelSpec.of(cfg)
-    spec_final = shooting.ModelSpec.of(cfg, tuple(_union(finals)))
+    spec_final = shooting.ModelSpec.of(cfg, tuple(named_effects(finals)))
     tasks = [(cfg, spec_base, seg_all, _mean_params(baselines, spec_base.param_names()), states_before),
              (cfg, spec_final, seg_all, _mean_params(finals, spec_final.param_names()), states_after)]
     baseline, current = _map(_all_tracks_fit, tasks, workers)
@@ -762,7 +762,7 @@ def diagnose(trackset, cfg, *, seed=0, folds=FOLDS, cross_folds=CROSS_FOLDS, can
     stand_ins = [name for name in named if judged[name]["cause"] == "stand_in"]
     for name in named:
         say(f"{name}: {judged[name]['cause']}" + (f" ({'; '.join(judged[name]['consistency']['failed'])})" if name in stand_ins else ""))
-    verdict = _verdict(median_after, floor, named, stand_ins)
+    verdict = verdict_of(median_after, floor, named, stand_ins)
     spread = [{"split": f"cross-fitting, seed {seed}", "verdict": verdict, "median_error": median_after,
                "median_multiple_of_floor": median_after / floor, "test_error": after_error}]
     spread += _resplits(cfg, current, red, cross, floor, named, stand_ins, seed, resplits)

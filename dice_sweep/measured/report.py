@@ -122,11 +122,10 @@ def _params_table(params):
 
 
 def _round_table(label, results):
-    lines = [f"| {label} | held-out error | median held-out | z | share of excess | tracks worse / better | null excluded | at bound | added |",
-             "|---|---|---|---|---|---|---|---|---|"]
-    for c in results:
+    lines = [f"| {label} | held-out error | median held-out | z | share of excess | null excluded | at bound | added |",
+             "|---|---|---|---|---|---|---|---|"]
+    for c in results:  # (the tracks each makes worse and better are in the JSON: worse_tracks, better_tracks)
         lines.append(f"| {c['effect']} | {_mm(c['test_error'])} | {_mm(c['median_error'])} | {c['z']:.2f} | {c['excess_share']:.0%} | "
-                     f"{c.get('worse_tracks', '-')} / {c.get('better_tracks', '-')} | "
                      f"{'yes' if c['null_excluded'] else 'no'} | {', '.join(c['at_bound']) or '-'} | {'yes' if c['accepted'] else 'no'} |")
     return lines
 
@@ -166,8 +165,12 @@ def markdown_report(report):
     data = report["data"]
     noise = report["noise"]
     spread = report.get("verdict_spread", {})
-    lines += [f"Data: {data['path']}: {data['tracks']} tracks at {data['rate_hz']:g} Hz; {data['usable_tracks']} usable "
-              f"({data['flights']} flights) in {data['cross_folds']} cross-fitting folds; "
+    if "usable_tracks" in data:
+        used = f"{data['usable_tracks']} usable ({data['flights']} flights) in {data['cross_folds']} cross-fitting folds"
+    else:  # a report of the loop before cross-fitting (issue 30)
+        used = (f"{data['selection_tracks']} selection tracks ({data['selection_flights']} flights) and {data['confirmation_tracks']} "
+                f"confirmation tracks ({data['confirmation_flights']} flights) usable")
+    lines += [f"Data: {data['path']}: {data['tracks']} tracks at {data['rate_hz']:g} Hz; {used}; "
               f"{data['glitch_frames']} glitch frames excluded, {data['gap_frames']} dropped frames re-inserted.", "",
               f"Angle: {report['angle_reading']}", "",
               f"Tracking noise (free flights): sigma x {noise['sigma_x'] * 1e3:.4f} mm, y {noise['sigma_y'] * 1e3:.4f} mm, "

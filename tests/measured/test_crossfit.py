@@ -64,10 +64,10 @@ def test_folds_are_halves_unless_the_tracks_are_few():
 
 
 def _result(e_current, e_cand, floor=1.0):
-    worse, better = loop._marked(np.array(e_current), np.array(e_cand), floor)
+    worse, better = loop.marked_tracks(np.array(e_current), np.array(e_cand), floor)
     return {"significant": True, "null_excluded": True, "excess_share": 0.5, "at_bound": [],
             "median_falls": bool(np.median(e_cand) < np.median(e_current)),
-            "rms_falls": loop._rms_falls(np.array(e_current), np.array(e_cand)), "worse_tracks": worse, "better_tracks": better,
+            "rms_falls": loop.rms_falls(np.array(e_current), np.array(e_cand)), "worse_tracks": worse, "better_tracks": better,
             "worse_within_share": bool(worse <= loop.MAX_WORSE_SHARE * (worse + better))}
 
 
@@ -75,32 +75,32 @@ def test_heavy_tails_cannot_pass():
     current = np.full(20, 3.0)
     # the median falls, a few tracks blow up: the RMS rises (the friction, 5.7 -> 19.4 mm)
     blown = np.r_[np.full(17, 2.0), [30.0, 30.0, 30.0]]
-    assert not loop._passes(_result(current, blown))
+    assert not loop.candidate_passes(_result(current, blown))
     # the RMS falls, the typical track gets worse
     lifted = np.r_[np.full(12, 3.2), np.full(8, 1.0)]
-    assert shooting.rms(lifted) < shooting.rms(current) and not loop._passes(_result(current, lifted))
+    assert shooting.rms(lifted) < shooting.rms(current) and not loop.candidate_passes(_result(current, lifted))
     # both fall, but 5 of the 16 tracks that move by more than half the floor get worse
     mixed = np.r_[np.full(11, 1.0), np.full(5, 4.2), np.full(4, 3.0)]
     assert shooting.rms(mixed) < shooting.rms(current) and np.median(mixed) < 3.0
-    assert not loop._passes(_result(current, mixed))
+    assert not loop.candidate_passes(_result(current, mixed))
     # a real gain: most tracks better, one worse
     gain = np.r_[np.full(18, 1.5), [3.6], [3.0]]
-    assert loop._passes(_result(current, gain))
+    assert loop.candidate_passes(_result(current, gain))
     # ... even when that one track (a prediction across a near-flat landing) lifts the RMS over all
     chaotic = np.r_[np.full(19, 1.5), [12.0]]
-    assert shooting.rms(chaotic) > shooting.rms(current) and loop._passes(_result(current, chaotic))
+    assert shooting.rms(chaotic) > shooting.rms(current) and loop.candidate_passes(_result(current, chaotic))
     # two such tracks decide it
-    assert not loop._passes(_result(current, np.r_[np.full(18, 1.5), [12.0, 12.0]]))
+    assert not loop.candidate_passes(_result(current, np.r_[np.full(18, 1.5), [12.0, 12.0]]))
 
 
 def test_the_named_model_takes_each_folds_effects_once():
     def model(*effects):
         return shooting.FitResult(shooting.ModelSpec.of(CFG, effects), {}, np.zeros((0, 6)), (), 0.0, 0, True, {})
 
-    assert loop._union([model("air_drag"), model("com_offset", "air_drag")]) == ["air_drag", "com_offset"]
+    assert loop.named_effects([model("air_drag"), model("com_offset", "air_drag")]) == ["air_drag", "com_offset"]
     # indistinguishable effects are named once; two friction rules never together (the one more folds chose)
-    assert loop._union([model("gravity"), model("time_scale")]) == ["gravity"]
-    assert loop._union([model("sliding_friction"), model("exact_coulomb"), model("exact_coulomb")]) == ["exact_coulomb"]
+    assert loop.named_effects([model("gravity"), model("time_scale")]) == ["gravity"]
+    assert loop.named_effects([model("sliding_friction"), model("exact_coulomb"), model("exact_coulomb")]) == ["exact_coulomb"]
 
 
 def test_two_parts_agree_within_their_intervals():
@@ -134,11 +134,11 @@ def test_a_signature_is_present_when_its_interval_says_so():
 
 
 def test_a_verdict_with_stand_ins_alone_names_no_cause():
-    assert loop._verdict(1.0, 1.0, ["air_drag"], []) == "explained"
-    assert loop._verdict(1.0, 1.0, ["table_offset"], ["table_offset"]) == "unexplained"  # within the floor, but by a stand-in
-    assert loop._verdict(1.0, 1.0, ["air_drag", "table_offset"], ["table_offset"]) == "improved"
-    assert loop._verdict(2.0, 1.0, [], []) == "unexplained"
-    assert loop._verdict(2.0, 1.0, ["air_drag"], []) == "improved"
+    assert loop.verdict_of(1.0, 1.0, ["air_drag"], []) == "explained"
+    assert loop.verdict_of(1.0, 1.0, ["table_offset"], ["table_offset"]) == "unexplained"  # within the floor, but by a stand-in
+    assert loop.verdict_of(1.0, 1.0, ["air_drag", "table_offset"], ["table_offset"]) == "improved"
+    assert loop.verdict_of(2.0, 1.0, [], []) == "unexplained"
+    assert loop.verdict_of(2.0, 1.0, ["air_drag"], []) == "improved"
 
 
 def test_an_effect_that_leaves_a_formula_where_it_acts_is_a_stand_in():

@@ -342,7 +342,7 @@ def four_times_the_noise(tmp_path_factory):
 @pytest.mark.slow
 def test_four_times_the_noise(four_times_the_noise):
     report = four_times_the_noise
-    usable = report["data"]["selection_tracks"] + report["data"]["confirmation_tracks"]
+    usable = report["data"]["usable_tracks"]
     assert usable >= 0.9 * TRACKS
     assert report["effects_added"][:1] == ["air_drag"]
     assert report["params"]["air_drag"]["value"] == pytest.approx(0.8, rel=0.05)
