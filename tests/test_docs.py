@@ -205,8 +205,11 @@ def _toml_blocks(path: Path):
 
 @pytest.mark.parametrize("path", [p for p in DOC_FILES if "```toml" in p.read_text()], ids=lambda p: p.name)
 def test_every_toml_block_of_the_docs_is_a_config(path):
-    for number, text in _toml_blocks(path):
-        config.parse_config(text, source=_where(path, number))  # a ConfigError names the key
+    blocks = list(_toml_blocks(path))
+    assert len(blocks) == path.read_text().count("```toml"), "a ```toml block not closed, or not read"
+    for number, text in blocks:
+        cfg = config.parse_config(text, source=_where(path, number))  # a ConfigError names the key
+        assert isinstance(cfg, config.Config) and cfg.source == _where(path, number)
 
 
 # --- links and paths -----------------------------------------------------------------------------
