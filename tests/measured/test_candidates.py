@@ -1,7 +1,17 @@
-"""Which candidates and pairs a round of the loop tries, from the registry's declarations."""
+"""Which candidates and pairs a round of the loop tries, from the registry's declarations, and
+when a candidate is fitted again at a bound.
+
+These call private helpers of dice_sweep.measured.diagnose (_pairs, _untried,
+_at_a_bound_off_null): diagnose.py is being reworked elsewhere (issue 29, item 1) and this
+worktree changes no package code, so they wait there, listed in tests/test_private_names.py
+as the one known exception, until those helpers are public or these tests join
+tests/measured/test_diagnose.py."""
+
+from types import SimpleNamespace
 
 from dice_sweep import effects as registry
-from dice_sweep.measured.diagnose import _pairs, _untried
+from dice_sweep.config import default_config
+from dice_sweep.measured.diagnose import _at_a_bound_off_null, _pairs, _untried
 from dice_sweep.measured.fit import ModelSpec
 
 
@@ -33,3 +43,15 @@ def test_the_exact_impact_frees_no_tangential_restitution():
     assert "beta_tangential" in ModelSpec((), ()).param_names()
     names = ModelSpec(("exact_coulomb", "coulomb_friction"), ()).param_names()
     assert "beta_tangential" not in names and {"beta_normal", "friction"} <= set(names)
+
+
+def test_a_bound_counts_for_a_refit_only_away_from_the_null():
+    """fit_candidate refits a contact candidate at a bound, but not at its null bound (an absent
+    effect): contact_time's bounds are 0 (its null) and 1e-3 s."""
+    cfg = default_config()
+    at = lambda value: SimpleNamespace(params={"contact_time": value}, at_bound={"contact_time": True})
+    assert _at_a_bound_off_null(at(1e-3), "flat_landing", cfg)
+    assert not _at_a_bound_off_null(at(0.0), "flat_landing", cfg)
+    assert not _at_a_bound_off_null(at(1e-10), "flat_landing", cfg)  # at the null bound within at_bound's tolerance
+    assert not _at_a_bound_off_null(SimpleNamespace(params={"contact_time": 5e-4}, at_bound={"contact_time": False}), "flat_landing", cfg)
+    assert not _at_a_bound_off_null(SimpleNamespace(params={}, at_bound={}), "corner_impulse", cfg)  # no parameter
