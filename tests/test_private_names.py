@@ -138,14 +138,6 @@ KNOWN = {
     "tests/measured/test_candidates.py": {"from dice_sweep.measured.diagnose import _pairs",
                                           "from dice_sweep.measured.diagnose import _untried",
                                           "from dice_sweep.measured.diagnose import _at_a_bound_off_null"},
-    # the curvature floor of the fit's damping: public in fit.py (damping_floor) would do
-    "tests/measured/test_fit.py": {"shooting._damping_floor"},
-    # carlson_rf's duplication steps counted through the Python twin of the half-angle integral
-    "tests/physics/test_pivot.py": {"pivot._half_angle_integral", "setattr(pivot, '_half_angle_integral')"},
-    # the check of the workers' kernels at the start, and the loop over completed tiles (a
-    # cancelled tile), have no public way in short of a cluster whose workers differ
-    "tests/test_distributed.py": {"from dice_sweep.distributed import _check_workers", "from dice_sweep.distributed import _completed",
-                                  "setattr(dask_executor, '_check_workers')"},
 }
 
 
