@@ -133,12 +133,7 @@ TESTS = ROOT / "tests"
 # Private names tests still need, each until the package offers what they test (a change of
 # dice_sweep/ that this test cannot make): file -> the uses, as private_uses words them. An
 # entry no longer used fails too, so that the list only shrinks.
-KNOWN = {
-    # diagnose.py is being reworked elsewhere (issue 29, item 1): public, or into test_diagnose.py
-    "tests/measured/test_candidates.py": {"from dice_sweep.measured.diagnose import _pairs",
-                                          "from dice_sweep.measured.diagnose import _untried",
-                                          "from dice_sweep.measured.diagnose import _at_a_bound_off_null"},
-}
+KNOWN = {}
 
 
 def _test_files():
