@@ -18,7 +18,7 @@ test: $(STAMP)
 
 # the property tests with fresh random examples (`make test` draws the same ones every run)
 test-explore: $(STAMP)
-	HYPOTHESIS_PROFILE=explore $(BIN)/python -m pytest -q tests/test_config.py tests/physics/test_impact.py tests/physics/test_flight_search_exact.py
+	HYPOTHESIS_PROFILE=explore $(BIN)/python -m pytest -q tests/test_config.py tests/physics/test_impact.py tests/physics/test_flight.py
 
 # the long cases of the measured-data loop on independent synthetic drops (minutes)
 test-measured: $(STAMP)

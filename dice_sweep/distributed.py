@@ -106,7 +106,7 @@ def _connect(distributed, scheduler: str | None, workers: int | None, timeout: f
         ) from None
 
 
-def _check_workers(client, scheduler: str | None) -> int:
+def check_workers(client, scheduler: str | None) -> int:
     """Refuse a cluster without workers or with workers that run another kernel."""
     fingerprints = client.run(kernel_fingerprint)
     where = scheduler or "local cluster"
@@ -154,7 +154,7 @@ def dask_tile_results(task, todo: Sequence[int], stop, scheduler: str | None = N
     client, cluster = _connect(distributed, scheduler, workers, timeout)
     pending = set()  # submitted and not yet consumed: cancelled on the way out
     try:
-        _check_workers(client, scheduler)
+        check_workers(client, scheduler)
         # a random key, not the task's hash: once (1 run in about 6 of the suite, not reproduced
         # in 12 more) a resume right after an interrupted run on the same cluster got its tiles
         # back cancelled (test_dask_resumes_an_interrupted_file_to_the_same_maps); the likely
@@ -162,7 +162,7 @@ def dask_tile_results(task, todo: Sequence[int], stop, scheduler: str | None = N
         shared_task = client.scatter(task, broadcast=True, hash=False)
         fingerprint = kernel_fingerprint()
         pending.update(client.submit(_run_tile, shared_task, index, fingerprint, pure=False) for index in todo)
-        yield _completed(distributed, pending, stop, scheduler or "local cluster")
+        yield completed_tiles(distributed, pending, stop, scheduler or "local cluster")
     finally:
         if pending:
             client.cancel(list(pending))
@@ -171,7 +171,7 @@ def dask_tile_results(task, todo: Sequence[int], stop, scheduler: str | None = N
             cluster.close()
 
 
-def _completed(distributed, pending: set, stop, where: str) -> Iterator:
+def completed_tiles(distributed, pending: set, stop, where: str) -> Iterator:
     # as_completed gathers results in the background as tasks finish; distributed.wait on
     # the pending set, then one result() round trip per tile, cost 10 ms per tile
     # (scripts/bench_scaling.py). Polled rather than blocking, so that Ctrl-C acts between

@@ -361,19 +361,27 @@ def commands_section(graph: Graph) -> str:
     return "\n".join(lines)
 
 
-def mirrored_test(name: str) -> Path:
+def mirrored_test(name: str, root: Path = ROOT) -> Path:
     """tests/<subpackage>/test_<module>.py of dice_sweep.<subpackage>.<module>."""
     parts = name.split(".")[1:]
-    return ROOT.joinpath("tests", *parts[:-1], f"test_{parts[-1]}.py")
+    return root.joinpath("tests", *parts[:-1], f"test_{parts[-1]}.py")
+
+
+def mirrored_tests(modules: dict, root: Path = ROOT) -> tuple[list, list, list]:
+    """(modules with a test module at the mirrored path, modules without one, test modules at no
+    module's mirrored path (as paths relative to ``root``)); packages' ``__init__`` and
+    ``__main__`` modules aside. tests/test_docs.py fails while the second list is not empty."""
+    names = sorted(n for n, m in modules.items() if not m.is_package and not n.endswith("__main__"))
+    have = [n for n in names if mirrored_test(n, root).exists()]
+    missing = [n for n in names if n not in have]
+    mirrored = {mirrored_test(n, root) for n in names}
+    others = sorted(p.relative_to(root).as_posix() for p in (root / "tests").rglob("test_*.py") if p not in mirrored)
+    return have, missing, others
 
 
 def tests_section(graph: Graph) -> str:
-    names = sorted(n for n, m in graph.modules.items() if not m.is_package and not n.endswith("__main__"))
-    have = [n for n in names if mirrored_test(n).exists()]
-    missing = [n for n in names if n not in have]
-    mirrored = {mirrored_test(n) for n in names}
-    others = sorted(p.relative_to(ROOT).as_posix() for p in (ROOT / "tests").rglob("test_*.py") if p not in mirrored)
-    lines = [f"{len(have)} of the {len(names)} modules (packages' `__init__` and `__main__` aside) have a test "
+    have, missing, others = mirrored_tests(graph.modules)
+    lines = [f"{len(have)} of the {len(have) + len(missing)} modules (packages' `__init__` and `__main__` aside) have a test "
              "module at the mirrored path (`dice_sweep/<sub>/<module>.py` -> `tests/<sub>/test_<module>.py`)."]
     if missing:
         lines.append(f"Without one: {_code(short(n) for n in missing)}.")

@@ -26,8 +26,8 @@ batch minus their sum (the roll loop's own bookkeeping and the records).
 
 Counts come from the same replays: search steps per contact search (the number of
 conservative advancement steps, counted by a copy of the drag-free search loop built on the
-kernel's ``_scan``, the loop that tests/physics/test_flight_search.py shows the kernel's
-search matches bit for bit), split into steps taken while the centre of mass is farther than
+kernel's ``_scan``, the loop that tests/physics/test_flight.py shows the kernel's search
+matches bit for bit, with that scan written out in the test), split into steps taken while the centre of mass is farther than
 rho_max (1 + 1e-6) from the table (one bound, no trigonometry) and steps over the corners.
 The replays carry their own loop overhead, which is why "rest" can come out negative.
 
@@ -513,12 +513,12 @@ NOTES = """
 1. The drag-free search is one loop over local variables (``flight.search_free``), called by
    the roll loop with the state as scalars; no trigonometry on steps taken while the centre
    of mass is still farther than rho_max from the table.
-   ``tests/physics/test_flight_search.py`` checks it against the old ``_scan`` loop bit for
-   bit.
+   ``tests/physics/test_flight.py`` checks it bit for bit against the generic scan it came
+   from, written out in the test.
 2. ``decided_side`` first compares the energy with g rho_max (1 - margin), never below its
    barrier, and the roll loop makes that comparison before calling it; ``_flat_side``
    counts the corners that are level and still before it looks for the side below
-   (``tests/physics/test_outcome_checks.py``).
+   (``tests/physics/test_outcome.py`` checks ``decided_side`` against the full rule).
 3. ``roll_batch`` and ``sample_batch`` allocate a roll's scratch arrays once.
 4. Such a touching corner (fp <= 0) now steps to where the quadratic bound could reach -tol
    / 2 (``flight._touching_step``), still within the tolerance: that flight takes 165 steps,
@@ -528,8 +528,8 @@ NOTES = """
    status or impact count changed on fig08, fig11 (512 x 512), fig09, fig13 (256 x 256),
    fig10 (128 x 128) or the golden files (``scripts/make_golden.py --check``); t_decided
    moved in 47 of fig11's 262,144 pixels and 5 of fig13's 65,536 (the other grids: none).
-   ``tests/physics/test_flight_search.py`` (the grazing start) and
-   ``test_flight_search_exact.py`` (no corner ever below -tol) check it.
+   ``tests/physics/test_flight.py`` (the grazing start, and no corner ever below -tol against
+   the exact gap) checks it.
 5. The roll loop (``_roll_event``) and its set-up (``_roll_into``) are inlined into
    ``roll_one``, ``roll_batch`` and ``sample_batch`` (numba's ``inline="always"``): as a call
    per roll the loop took eight array arguments, a reference count up and down for each.

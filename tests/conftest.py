@@ -7,6 +7,7 @@ but a rare failing example must show up in an exploration run, not first in some
 
 import os
 
+import pytest
 from hypothesis import settings
 
 settings.register_profile("deterministic", derandomize=True, database=None)
@@ -21,3 +22,16 @@ os.environ.setdefault("DICE_SWEEP_COMPILE_NOTE", "0")
 # depends on the numba cache and a timing probe, and tests must not. tests/test_engine.py
 # covers the plain engine and the choice, with this variable set per test.
 os.environ.setdefault("DICE_SWEEP_ENGINE", "numba")
+
+
+@pytest.fixture(scope="session")
+def fig08_file(tmp_path_factory):
+    """fig08 at 128 x 128, the physical ranges of the paper's figure: a sweep file that
+    tests/chaos/test_control.py and tests/app/test_chaos.py share (about 6 s to roll)."""
+    from dice_sweep.config import load_config
+    from tests.helpers import CONFIGS, small_sweep
+
+    cfg = load_config(CONFIGS / "fig08.toml", ["grid.x.num=128", "grid.y.num=128"])
+    path = tmp_path_factory.mktemp("fig08") / "fig08.h5"
+    small_sweep(cfg, path)
+    return path

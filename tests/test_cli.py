@@ -5,13 +5,16 @@ import os
 import pathlib
 import subprocess
 import sys
+import textwrap
 import types
+from unittest import mock
 
 import click
 import pytest
 
 from dice_sweep import cli
 from tests.helpers import CONFIGS as CONFIG_DIR
+from tests.helpers import ROOT
 from tests.helpers import corrupt_first_chunk, figure_pixels, map_region, png_size, read_png, share, small_sweep
 from tests.helpers import run_cli as run
 from tests.test_storage import held_open  # noqa: F401 - a fixture
@@ -204,6 +207,14 @@ def test_bad_dpi_is_one_line_error(calls, dpi):
     assert calls == []
 
 
+def assert_warns_on_stderr(warn):
+    """``warn`` (what the CLI hands draw_sweep_file) writes its line to stderr as a warning."""
+    said = []
+    with mock.patch.object(cli.click, "echo", lambda text, err=False: said.append((text, err))):
+        warn("200 of 400 cells not computed yet")
+    assert said == [("warning: 200 of 400 cells not computed yet", True)]
+
+
 # ---- wiring of the commands to the library ----------------------------------------------------
 
 
@@ -215,7 +226,8 @@ def test_sweep_passes_options_to_run_sweep_and_plots(calls):
     assert kwargs == {"workers": 3, "shard": (1, 4), "resume": True, "progress": True,
                       "executor": "local", "scheduler": None}
     assert cfg.grid.x.num == 128 and cfg.source == DEMO
-    assert plot_call == ("draw_sweep_file", ("out.h5", "out.png"), {"warn": cli._warn})
+    assert plot_call[:2] == ("draw_sweep_file", ("out.h5", "out.png")) and set(plot_call[2]) == {"warn"}
+    assert_warns_on_stderr(plot_call[2]["warn"])
     assert result.stdout.splitlines() == ["summary line", "wrote the.png"]
 
 
@@ -251,10 +263,12 @@ def test_roll_draws_png_and_gif(calls):
 def test_merge_and_plot_pass_their_arguments(calls):
     assert run("merge", "a.h5", "b.h5", "-o", "m.h5").exit_code == 0
     assert run("plot", "m.h5", "-o", "m.png", "--box", "1,2,0.1,0.2", "--dpi", "80").exit_code == 0
+    warn = calls[1][2].pop("warn")
     assert calls == [
         ("merge_parts", (("a.h5", "b.h5"), "m.h5"), {}),
-        ("draw_sweep_file", ("m.h5", "m.png"), {"box": (1.0, 2.0, 0.1, 0.2), "dpi": 80, "warn": cli._warn}),
+        ("draw_sweep_file", ("m.h5", "m.png"), {"box": (1.0, 2.0, 0.1, 0.2), "dpi": 80}),
     ]
+    assert_warns_on_stderr(warn)
 
 
 @pytest.mark.parametrize("command", [("sweep", DEMO), ("merge", "a.h5")])
@@ -563,28 +577,43 @@ def test_simulate_drops_never_replaces_tracked_data(inputs, tmp_path):
         assert run("simulate-drops", SQUARE, "-o", again, "--tracks", 2).exit_code == 0
 
 
-def test_a_compile_of_a_kernel_is_announced_once_on_stderr(monkeypatch):
-    """Issue 16: a cold start compiled for 20 s without a word. The note comes when numba
-    starts compiling a function of this package (a cache miss), once per process, and not
-    for other modules' functions. A fresh function stands in for the kernel."""
-    import numba
+def test_a_compile_of_a_kernel_is_announced_once_on_stderr(tmp_path):
+    """Issue 16: a cold start compiled for 20 s without a word. A command that runs kernels
+    registers the note before it reads its input; the note comes when numba starts compiling a
+    function of this package (a cache miss), once per process, and not for other modules'
+    functions. In a fresh process: the command is refused at its config (nothing compiled),
+    then fresh functions stand in for the kernel."""
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(ROOT)!r})
+        import numba
+        from click.testing import CliRunner
+        from dice_sweep.cli import main
 
-    from dice_sweep import startup
+        def roll_refused():
+            assert CliRunner().invoke(main, ["roll", {str(TABLE1)!r}, "--set", "die.sides=2"]).exit_code == 2
 
-    monkeypatch.setattr(startup, "_notified", [])
-    monkeypatch.setenv("DICE_SWEEP_COMPILE_NOTE", "1")
-    said = []
-    monkeypatch.setattr(cli.click, "echo", lambda text, err=False: said.append((text, err)))
-    cli._compile_notice()
-    namespace = {"__name__": "elsewhere.module"}
-    exec("def other(x):\n    return x + 1\n", namespace)
-    numba.njit(namespace["other"])(1)
-    assert said == []  # not one of ours
-    namespace = {"__name__": "dice_sweep.probe"}
-    exec("def ours(x):\n    return x + 2\n\ndef again(x):\n    return x + 3\n", namespace)
-    numba.njit(namespace["ours"])(1)
-    numba.njit(namespace["again"])(1)
-    cli._compile_notice()  # a second registration in the same process adds nothing
-    numba.njit(namespace["ours"])(2.5)
-    assert len(said) == 1 and said[0][1] is True
-    assert said[0][0].startswith("note: compiling the kernel") and "s on 2 cores" in said[0][0]
+        def say(line):
+            sys.stderr.write(line + "\\n")
+            sys.stderr.flush()
+
+        roll_refused()
+        other = {{"__name__": "elsewhere.module"}}
+        exec("def other(x):\\n    return x + 1\\n", other)
+        numba.njit(other["other"])(1)
+        say("compiled elsewhere")
+        ours = {{"__name__": "dice_sweep.probe"}}
+        exec("def ours(x):\\n    return x + 2\\n\\ndef again(x):\\n    return x + 3\\n", ours)
+        numba.njit(ours["ours"])(1)
+        say("compiled ours")
+        numba.njit(ours["again"])(1)
+        roll_refused()  # a second registration in the same process adds nothing
+        numba.njit(ours["ours"])(2.5)
+        say("compiled again")
+    """)
+    env = {**os.environ, "DICE_SWEEP_COMPILE_NOTE": "1"}
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    assert done.returncode == 0, done.stderr
+    lines = done.stderr.splitlines()
+    assert lines[0] == "compiled elsewhere" and lines[2:] == ["compiled ours", "compiled again"], lines
+    assert lines[1].startswith("note: compiling the kernel") and "s on 2 cores" in lines[1]

@@ -69,6 +69,29 @@ def test_the_architecture_script_finds_a_cycle_and_an_import_by_name(tmp_path):
     assert "units importing each other" in script.cycles_section(graph)
 
 
+def test_every_module_has_a_test_module_at_its_mirrored_path():
+    """tests/ mirrors dice_sweep/: dice_sweep/<sub>/<module>.py is tested in
+    tests/<sub>/test_<module>.py (the rule of scripts/architecture_doc.py, whose page lists both
+    sides); a new module without one fails here."""
+    script = _architecture_script()
+    have, missing, _ = script.mirrored_tests(script.read_modules())
+    assert have and not missing, "modules without a test module at the mirrored path: " + ", ".join(
+        f"{name} (tests/{script.mirrored_test(name).relative_to(script.ROOT / 'tests').as_posix()})" for name in missing)
+
+
+def test_the_mirror_check_finds_a_module_without_its_test(tmp_path):
+    """The check can fail: in a tree with dice_sweep/a.py and dice_sweep/sub/b.py, only a's test
+    and a test of nothing, b is missing and the other test is reported."""
+    for path, text in {"dice_sweep/__init__.py": "", "dice_sweep/__main__.py": "", "dice_sweep/a.py": '"""A."""\n',
+                       "dice_sweep/sub/__init__.py": "", "dice_sweep/sub/b.py": '"""B."""\n',
+                       "tests/test_a.py": "", "tests/sub/test_c.py": ""}.items():
+        (tmp_path / path).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / path).write_text(text)
+    script = _architecture_script()
+    modules = script.read_modules(tmp_path / "dice_sweep")
+    assert script.mirrored_tests(modules, tmp_path) == (["dice_sweep.a"], ["dice_sweep.sub.b"], ["tests/sub/test_c.py"])
+
+
 # --- config keys -------------------------------------------------------------------------------
 
 
@@ -182,8 +205,11 @@ def _toml_blocks(path: Path):
 
 @pytest.mark.parametrize("path", [p for p in DOC_FILES if "```toml" in p.read_text()], ids=lambda p: p.name)
 def test_every_toml_block_of_the_docs_is_a_config(path):
-    for number, text in _toml_blocks(path):
-        config.parse_config(text, source=_where(path, number))  # a ConfigError names the key
+    blocks = list(_toml_blocks(path))
+    assert len(blocks) == path.read_text().count("```toml"), "a ```toml block not closed, or not read"
+    for number, text in blocks:
+        cfg = config.parse_config(text, source=_where(path, number))  # a ConfigError names the key
+        assert isinstance(cfg, config.Config) and cfg.source == _where(path, number)
 
 
 # --- links and paths -----------------------------------------------------------------------------

@@ -99,12 +99,24 @@ def test_plain_and_compiled_rolls_agree_bit_for_bit(path):
 
 
 def test_the_plain_twin_calls_no_compiled_kernel():
-    twin = engine.plain(roll_batch)
-    assert twin is not roll_batch and twin.__code__ is roll_batch.py_func.__code__
+    """Every jitted function of dice_sweep.physics has a plain twin on its own code, whose
+    globals hold no numba dispatcher (a call would compile)."""
+    import importlib
+    import pkgutil
+
     from numba.core.dispatcher import Dispatcher
 
-    for function in engine._plain_functions().values():
-        assert not any(isinstance(value, Dispatcher) for value in function.__globals__.values())
+    import dice_sweep.physics
+
+    twin = engine.plain(roll_batch)
+    assert twin is not roll_batch and twin.__code__ is roll_batch.py_func.__code__
+    kernels = {value for info in pkgutil.iter_modules(dice_sweep.physics.__path__)
+               for value in vars(importlib.import_module(f"dice_sweep.physics.{info.name}")).values() if isinstance(value, Dispatcher)}
+    assert len(kernels) > 20
+    for kernel in kernels:
+        function = engine.plain(kernel)
+        assert function.__code__ is kernel.py_func.__code__, kernel
+        assert not any(isinstance(value, Dispatcher) for value in function.__globals__.values()), kernel
 
 
 def test_a_domain_error_of_the_plain_engine_falls_back_to_the_compiled_kernel(monkeypatch):
@@ -114,7 +126,7 @@ def test_a_domain_error_of_the_plain_engine_falls_back_to_the_compiled_kernel(mo
     def failing(*args):
         raise ValueError("math domain error")
 
-    monkeypatch.setitem(engine._plain_functions(), roll_one, failing)
+    monkeypatch.setattr(engine, "plain", lambda kernel: failing)
     args = (fpar, ipar, initial_state(cfg), np.zeros((100, REC_WIDTH)), np.zeros(len(COUNT_COLUMNS), np.int32))
     assert engine.run(roll_one, engine.ENGINE_PLAIN, *args)[0] == roll_one(*args)[0]
 

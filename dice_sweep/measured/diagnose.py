@@ -201,7 +201,7 @@ def fit_candidate(cfg, current, effect_name, segments, previous=None):
             best = result
     if not best.converged and len(starts) > 1:
         best = shooting.fit_spec(cfg, spec, segments, start=best.params, states=best.states)
-    if refresh and _at_a_bound_off_null(best, effect_name, cfg):
+    if refresh and at_a_bound_off_null(best, effect_name, cfg):
         # once more at the fitted values: on flat-landing drops the fit from the start
         # values' states ended at the bound 1e-3 s (cost 0.039); 79
         # flights then fitted better from their guesses, and the refit reached 9.7e-4 s at cost
@@ -212,7 +212,7 @@ def fit_candidate(cfg, current, effect_name, segments, previous=None):
     return best
 
 
-def _at_a_bound_off_null(fit, effect_name, cfg):
+def at_a_bound_off_null(fit, effect_name, cfg):
     """Whether a parameter of the effect ends at a fit bound (``fit.at_bound``) that is not its
     null value: at a null bound (speed_restitution at 0) the effect is simply absent."""
     for p in registry.effect(effect_name).params:
@@ -385,7 +385,7 @@ def marked_tracks(e_current, e_cand, floor):
     return int(np.sum(change > MARKED * floor)), int(np.sum(change < -MARKED * floor))
 
 
-def _untried(pool, spec):
+def untried_effects(pool, spec):
     """Candidates of a round: those not in the model, and not indistinguishable from one in it
     or from one earlier in the pool (the registry's ``equivalent``: the same fit twice)."""
     tried = []
@@ -415,7 +415,7 @@ def _try_candidate(task):
     return result, (name, *_null_linearisation(cfg, current, name, segments))
 
 
-def _pairs(results):
+def candidate_pairs(results):
     """Pairs worth fitting together when no single effect passes: the two with the largest
     statistics, and every pair the registry says acts together (``acts_with``: one may help
     only with the other, a corner impulse only with friction capping it, say). Two effects
@@ -490,7 +490,7 @@ def _select(cfg, seg, prepared, select_set, *, floor, sigmas, rng, seed, folds, 
     restarts = 0
     previous = {}  # a repeated round's candidate fits, to go on from
     while len(chain) < max_chain:
-        tried = _untried(pool, current.spec)
+        tried = untried_effects(pool, current.spec)
         if not tried:
             break
         job = (cfg, current, seg, fold, e_current, floor, bootstrap, sigmas, seed)
@@ -525,7 +525,7 @@ def _select(cfg, seg, prepared, select_set, *, floor, sigmas, rng, seed, folds, 
                        "candidates": [{k: v for k, v in r.items() if k not in ("fit", "red", "errors")} for r in results]})
         accepted = [r for r in results if r["accepted"]]
         if not accepted:
-            pairs = _pairs(results)
+            pairs = candidate_pairs(results)
             singles = {r["effect"]: r["fit"] for r in results}
             tested = _map(_try_pair, [((*job, singles), p) for p in pairs], workers)
             # the pairs are more comparisons, chosen after seeing the singles: a stricter bound

@@ -361,7 +361,7 @@ class FitResult:
 PARAM_DAMPING_FLOOR = 1e-6
 
 
-def _damping_floor(hpp, scales):
+def damping_floor(hpp, scales):
     """Least curvature (per parameter, its own units) that damps a parameter's step."""
     if not scales.size:
         return np.zeros(0)
@@ -393,7 +393,7 @@ def _fit(model, values, states, free, max_iterations=MAX_ITERATIONS):
         lin = Linearisation(residual, weight, jac_p, jac_s)
         hss, hsp, hpp, gs, gp = normal_blocks(lin, starts)
         hpp_total = hpp.sum(axis=0)
-        floor_p = _damping_floor(hpp_total, scales)
+        floor_p = damping_floor(hpp_total, scales)
         improved = False
         for _ in range(16):
             inv = damped_inverse(hss, damping)

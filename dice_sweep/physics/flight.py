@@ -184,12 +184,12 @@ def _touching_step(f, fp, m2, tol):
     Otherwise the corner may graze the surface for a long time: a corner at the bottom of
     a die spinning at omega with rho omega^2 close to g barely accelerates. It used to step
     by min_step there, and one such fig11 flight took 162,122 steps (42 % of all the search
-    steps of fig11 at 64 x 64; tests/physics/test_flight_search.py, grazing). Instead step
+    steps of fig11 at 64 x 64; tests/physics/test_flight.py, grazing). Instead step
     to where the bound could reach -tol / 2: within the tolerance with room for round-off
-    (to -tol itself, a resting corner ended 3e-5 tol deeper: test_flight_search_exact.py).
+    (to -tol itself, a resting corner ended 3e-5 tol deeper: test_flight.py, the exact gap).
     With m2 = 0 and fp = 0 (a corner of a die without spin resting against a wall) that is
     never: min_step there made the search stall after MAX_SEARCH_STEPS while the die fell
-    (test_flight_search_exact.py, random flights, hypothesis seed 25).
+    (test_flight.py, random flights, hypothesis seed 25).
     """
     if fp > 0.0:
         if m2 <= 0.0:
@@ -261,7 +261,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     :func:`_scan` from the closed-form flight.
 
     The same arithmetic as ``_scan`` on ``flight_state`` (so the same steps, bit for bit;
-    tests/physics/test_flight_search.py checks it), written as one loop over local variables:
+    tests/physics/test_flight.py checks it), written as one loop over local variables:
     no array traffic per step, and the sine and cosine of phi only on steps that visit the
     corners (not while the centre of mass is still far from every surface). The state comes
     in and goes out as scalars: every array argument of a numba function that calls others

@@ -121,7 +121,7 @@ def carlson_rf(x, y, z):
 
 
 @numba.njit(cache=True)
-def _half_angle_integral(v, delta, b):
+def half_angle_integral(v, delta, b):
     """G(v) = integral from 0 to v of dv' / sqrt(delta + b sin^2 v'), for |v| < pi/2."""
     sv = math.sin(v)
     cv = math.cos(v)
@@ -141,8 +141,8 @@ def pivot_time(chi_a, chi_b, e, radius, g, alpha):
     scale = radius * radius * (1.0 + alpha)
     big_b = 2.0 * g / (radius * (1.0 + alpha))
     delta = max(2.0 * e / scale - big_b, 0.0)
-    ga = _half_angle_integral(0.5 * (chi_a - 0.5 * math.pi), delta, 2.0 * big_b)
-    gb = _half_angle_integral(0.5 * (chi_b - 0.5 * math.pi), delta, 2.0 * big_b)
+    ga = half_angle_integral(0.5 * (chi_a - 0.5 * math.pi), delta, 2.0 * big_b)
+    gb = half_angle_integral(0.5 * (chi_b - 0.5 * math.pi), delta, 2.0 * big_b)
     return 2.0 * abs(gb - ga)
 
 

@@ -1,4 +1,4 @@
-"""The page of ``dice-sweep view`` in headless Chromium: what tests/test_view.py and
+"""The page of ``dice-sweep view`` in headless Chromium: what tests/view/ and
 scripts/view_screenshot.py share. Takes a playwright browser (a test dependency, imported by
 the caller); Debian's Chromium, never a browser download of playwright's own."""
 

@@ -1,5 +1,5 @@
 """dice_sweep.app.simulate: the files of ``simulate-drops`` (the drops themselves:
-tests/measured/test_simulate_drops.py)."""
+tests/measured/test_simulate.py)."""
 
 import gzip
 import json

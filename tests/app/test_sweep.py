@@ -1,13 +1,17 @@
 """Tests of dice_sweep.app.sweep: the sweep and merge commands' own checks (made here, once,
-before any work), and that they join compute, storage and pictures."""
+before any work), that they join compute, storage and pictures, and a sweep file's picture
+(draw_sweep_file: its size, the --box, the cells not computed, the --dpi check)."""
 
+import numpy as np
 import pytest
 
-from dice_sweep.app.sweep import merge, sweep
+from dice_sweep import config, plotting, storage
+from dice_sweep.app.sweep import diagram_title, draw_sweep_file, draw_sweep_files, merge, sweep
 from dice_sweep.config import parse_config
 from dice_sweep.errors import ConfigError, DiceSweepError
 from dice_sweep.storage import read_sweep
-from tests.helpers import assert_same_maps
+from tests.helpers import assert_same_maps, figure_pixels, map_region, near, pixel_at, png_size, read_png
+from tests.plotting.drawn import BLOCK_CONFIG_TOML, BLOCK_OUTCOME, COLOR_TOLERANCE, write_block_sweep, write_sweep_file
 from tests.test_sweep import CONFIG_TEXT
 
 
@@ -76,3 +80,67 @@ def test_merge_refuses_an_output_that_is_not_a_sweep_file(cfg, tmp_path):
     assert not (tmp_path / "merged.png").exists()
     with pytest.raises(DiceSweepError, match="--output: .: wrong file extension"):
         merge([tmp_path / "part.h5"], "")
+
+
+# --- a sweep file's picture -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("dpi", [30, 72])
+def test_draw_sweep_file_writes_png_of_requested_size(tmp_path, dpi):
+    h5 = write_block_sweep(tmp_path / "sweep.h5")
+    png = draw_sweep_file(h5, tmp_path / "map.png", box=(10, 20, 0.1, 0.2), dpi=dpi)
+    with open(png, "rb") as file:
+        assert file.read(8) == b"\x89PNG\r\n\x1a\n"
+    assert png_size(png) == figure_pixels(plotting.OUTCOME_FIGSIZE, dpi)
+    # the --box rectangle: white (no side's colour) on the map, where the box is: omega0 10 to
+    # 20 of 0 to 60, y0 0.1 to 0.2 of 0.02 to 0.30 (rows count down from 0.30)
+    block_colours = [*plotting.outcome_colors(4), plotting.UNDECIDED_COLOR]
+    region = map_region(read_png(png), block_colours, inset=0)
+    rows, columns = np.nonzero(near(region, (1.0, 1.0, 1.0), tol=0.45))  # every channel > 0.55: no block's colour
+    assert rows.size > 0, "no rectangle drawn"
+    height, width = region.shape[:2]
+    reach = 2.5 / width, 2.5 / height  # the frame's line, antialiased
+    assert columns.min() / width == pytest.approx(10 / 60, abs=reach[0])
+    assert columns.max() / width == pytest.approx(20 / 60, abs=reach[0])
+    assert rows.min() / height == pytest.approx((0.30 - 0.2) / 0.28, abs=reach[1])
+    assert rows.max() / height == pytest.approx((0.30 - 0.1) / 0.28, abs=reach[1])
+
+
+def test_cells_not_computed_have_their_own_colour_legend_entry_and_warning(tmp_path):
+    """Issue 16: an incomplete sweep was drawn with its cells not computed in the black of
+    'undecided', and without a word."""
+    half = write_sweep_file(tmp_path / "half.h5", config.parse_config(BLOCK_CONFIG_TOML), BLOCK_OUTCOME, False, rows=10)
+    warnings = []
+    png = draw_sweep_file(half, tmp_path / "half.png", dpi=60, warn=warnings.append)
+    assert len(warnings) == 1 and warnings[0].startswith(f"{half}: 200 of 400 cells not computed yet")
+    sweep_data = storage.read_sweep(half)
+    fig = plotting.sweep_figure(sweep_data, diagram_title(sweep_data), dpi=60)
+    fig.savefig(png, dpi=60)
+    for x, y, expected in [(15.0, 0.09, plotting.outcome_colors(4)[0]), (45.0, 0.09, plotting.outcome_colors(4)[1]),
+                           (15.0, 0.23, plotting.NOT_COMPUTED_COLOR), (45.0, 0.23, plotting.NOT_COMPUTED_COLOR)]:
+        np.testing.assert_allclose(pixel_at(fig, x, y, png), expected, atol=COLOR_TOLERANCE)
+    labels = [label.get_text() for label in fig.axes[1].get_yticklabels()]
+    assert labels == ["not computed", "undecided", "side 0", "side 1", "side 2", "side 3"]
+    assert fig.axes[0].get_title().endswith("(incomplete)")
+    whole = write_block_sweep(tmp_path / "whole.h5")
+    draw_sweep_file(whole, tmp_path / "whole.png", dpi=30, warn=warnings.append)
+    assert len(warnings) == 1  # nothing to say about a complete sweep
+
+
+@pytest.mark.parametrize("dpi", [0, 9, 1001, 100000])
+def test_dpi_outside_its_range_is_refused_before_drawing(tmp_path, dpi):
+    """Issue 16: --dpi 100000 ended in a MemoryError traceback."""
+    with pytest.raises(DiceSweepError, match=r"--dpi: .* allowed range \[10, 1000\]"):
+        draw_sweep_file(write_block_sweep(tmp_path / "sweep.h5"), tmp_path / "map.png", dpi=dpi)
+    assert not (tmp_path / "map.png").exists()
+
+
+
+def test_several_files_are_drawn_side_by_side_titled_by_their_configs(tmp_path):
+    whole = write_block_sweep(tmp_path / "whole.h5")
+    half = write_sweep_file(tmp_path / "half.h5", config.parse_config(BLOCK_CONFIG_TOML), BLOCK_OUTCOME, False, rows=10)
+    png = draw_sweep_files([whole, half], tmp_path / "both.png", dpi=30)
+    width, height = figure_pixels(plotting.OUTCOME_FIGSIZE, 30)
+    assert png_size(png) == (2 * width, height)
+    assert diagram_title(storage.read_sweep(half)).endswith("(incomplete)")
+    assert not diagram_title(storage.read_sweep(whole)).endswith("(incomplete)")

@@ -136,20 +136,20 @@ def test_the_damping_floor_lifts_a_curvature_the_frames_hardly_see():
     damping bounds its step."""
     scales = np.array([0.1, 0.1])
     hpp = np.diag([2.0e4, 2.0e-15])
-    floor = shooting._damping_floor(hpp, scales)
+    floor = shooting.damping_floor(hpp, scales)
     largest = 2.0e4 * 0.1**2
     assert floor == pytest.approx(np.full(2, shooting.PARAM_DAMPING_FLOOR * largest) / scales**2, rel=1e-12)
     assert floor[1] > 1e8 * hpp[1, 1]  # the unseen parameter's step is bounded by the floor, not by its curvature
-    assert shooting._damping_floor(np.zeros((0, 0)), np.zeros(0)).size == 0
+    assert shooting.damping_floor(np.zeros((0, 0)), np.zeros(0)).size == 0
 
 
 def test_the_damping_floor_is_a_share_of_the_largest_scaled_curvature():
     hpp = np.diag([4.0, 1e-19, 2.0])
     scales = np.array([0.1, 0.1, 1e-3])
-    floor = shooting._damping_floor(hpp, scales)
+    floor = shooting.damping_floor(hpp, scales)
     largest = max(4.0 * 0.1**2, 2.0 * 1e-6)  # beta-like 0.04 beats the third's 2e-6
     assert floor == pytest.approx(shooting.PARAM_DAMPING_FLOOR * largest / scales**2)
-    assert shooting._damping_floor(np.zeros((0, 0)), np.zeros(0)).size == 0
+    assert shooting.damping_floor(np.zeros((0, 0)), np.zeros(0)).size == 0
 
 
 def _packed_config(model, values, t_max):

@@ -8,10 +8,13 @@ state) by ``numpy.linalg.lstsq``, then each held-out segment's state refitted by
 
 from pathlib import Path
 
+import math
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
-from dice_sweep.config import load_config
+from dice_sweep.config import default_config, load_config
 from dice_sweep.measured import reduced
 from dice_sweep.measured.blocks import Linearisation
 
@@ -163,3 +166,36 @@ def test_noise_covariance_equals_direct_least_squares():
     seg.frame_rows, seg.frames = np.arange(rows), int(rows)
     apart = reduced.noise_covariance(reduced.reduce(lin, seg), seg, sigmas)
     assert np.max(np.abs(np.diag(apart) / np.diag(got) - 1.0)) > 0.05
+
+
+# --- a parameter no track's residual moves with ----------------------------------------------------
+
+
+def fit_of(names, values):
+    return SimpleNamespace(free=tuple(names), params=dict(zip(names, values)), at_bound={})
+
+
+def test_a_parameter_without_information_has_no_interval_and_excludes_nothing():
+    """On the real drops the flat_landing candidate stayed at its start value (a contact time
+    shorter than every landing's delay), its bootstrap interval had zero width, [3e-5, 3e-5] s,
+    and the report called its null value excluded."""
+    cfg = default_config()
+    names = ["beta_normal", "contact_time"]
+    fit = fit_of(names, [0.4, 3e-5])
+    draws = np.column_stack([np.linspace(0.39, 0.41, 100), np.full(100, 3e-5)])  # zero width
+    info = np.zeros((5, 2, 2))
+    info[:, 0, 0] = 1.0  # each of 5 tracks informs beta_normal, none contact_time
+    out = reduced.describe_params(fit, draws, cfg, SimpleNamespace(M=info))
+    assert out["beta_normal"]["identified"] and out["beta_normal"]["ci95"][0] < 0.4 < out["beta_normal"]["ci95"][1]
+    assert not out["contact_time"]["identified"]
+    assert all(math.isnan(v) for v in out["contact_time"]["ci95"])
+    assert not reduced.null_excluded("contact_time", out["contact_time"]["ci95"], cfg)
+    # nor a zero-width interval from the tracks, nor a noise share, with the noise covariance
+    out = reduced.describe_params(fit, draws, cfg, SimpleNamespace(M=info), noise_cov=np.diag([1e-6, 0.0]))
+    assert all(math.isnan(v) for v in out["contact_time"]["ci95"] + out["contact_time"]["ci95_tracks"])
+    assert math.isnan(out["contact_time"]["sd_noise"])
+    assert out["beta_normal"]["ci95"][0] <= 0.4 - 1.96e-3 and out["beta_normal"]["ci95"][1] >= 0.4 + 1.96e-3  # spans the noise share
+    # with any information the interval is kept and can exclude the null
+    info[2, 1, 1] = 1e-3
+    out = reduced.describe_params(fit, draws, cfg, SimpleNamespace(M=info))
+    assert out["contact_time"]["identified"] and reduced.null_excluded("contact_time", out["contact_time"]["ci95"], cfg)

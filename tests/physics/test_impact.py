@@ -18,7 +18,7 @@ from dice_sweep.physics.impact import (
 )
 from dice_sweep.geometry import inertia_ratio
 from dice_sweep.physics.params import FP_INERTIA
-from tests.physics.conftest import make_params
+from tests.physics.conftest import TABLE1_RADIUS, corner_impacts, make_params
 
 RADIUS = 0.0134
 
@@ -145,3 +145,23 @@ def test_stick_corner_stops_the_corner_and_only_removes_energy():
     stick_corner(s, fpar[FP_INERTIA], rx, ry)
     assert abs(s[3] - s[5] * ry) < 1e-14 and abs(s[4] + s[5] * rx) < 1e-14
     assert specific_energy(s, fpar) <= before
+
+
+def test_capped_impulse_sits_on_the_cone_edge_on_the_targets_side():
+    """When the target impulse leaves the friction cone, friction takes the cone's edge on
+    the target's side (as Chipmunk does), even when the normal impulse throws the corner
+    back against its incoming slip (the case docs/dev/validation_history.md traced)."""
+    inertia = TABLE1_RADIUS * TABLE1_RADIUS / 3
+    seen_against_slip = 0
+    for s, rx, ry in corner_impacts(np.random.default_rng(11), 3000, TABLE1_RADIUS):
+        target = s.copy()
+        corner_impulse(target, inertia, 0.2, 0.0, math.inf, rx, ry, 0.0, 1.0)
+        capped = s.copy()
+        corner_impulse(capped, inertia, 0.2, 0.0, 0.3, rx, ry, 0.0, 1.0)
+        p_target = target[3] - s[3]
+        p_t, p_n = capped[3] - s[3], capped[4] - s[4]
+        if abs(p_target) > 0.3 * (target[4] - s[4]) * 1.01 and p_n > 0:
+            assert math.copysign(1, p_t) == math.copysign(1, p_target)
+            u_t = s[3] - s[5] * ry
+            seen_against_slip += math.copysign(1, p_target) == math.copysign(1, u_t)
+    assert seen_against_slip > 0  # the case the textbook branch gets wrong did occur

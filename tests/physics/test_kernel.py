@@ -1,4 +1,6 @@
-"""Whole rolls: reference values, symmetries, invariants, integrator agreement."""
+"""Tests of dice_sweep.physics.kernel: whole rolls - reference values, symmetries, invariants,
+integrator agreement; and the effects of the library (issue 4) on whole rolls: restitution by
+speed, g, friction, drag and a loaded die."""
 
 import math
 
@@ -16,10 +18,13 @@ from dice_sweep.physics.kernel import (
     STATUS_DECIDED,
     STATUS_EVENT_BUDGET,
     STATUS_T_MAX,
+    decided_side,
+    shift_reference,
     side_below,
 )
 from dice_sweep.geometry import corners, inertia_ratio
-from dice_sweep.roll import sample_path
+from dice_sweep.physics.params import FP_INERTIA
+from dice_sweep.roll import roll_config, sample_path
 from tests.physics.conftest import TABLE1_RADIUS, follow_to_rest, make_config, make_params, random_states, run_batch, run_one
 
 G = 9.81
@@ -243,3 +248,110 @@ def test_fixed_step_budget_grows_with_t_max_over_dt():
     # the event-driven scheme keeps max_events as it is
     _, status, _, _, _, _ = run_one(make_params(sides=5, max_events=3), state)
     assert status == STATUS_EVENT_BUDGET
+
+
+# --- the effects library on whole rolls (issue 4) -------------------------------------------------
+
+
+@pytest.mark.parametrize("k", [0.0, 0.3, 2.0])
+def test_speed_restitution_on_a_flat_landing(k):
+    y0, beta_n = 0.15, 0.5
+    _, _, _, _, rec, _ = run_one(make_params(beta_n=beta_n, speed_restitution=k), [0.0, y0, math.pi / 4, 0, 0, 0])
+    vy = -math.sqrt(2 * G * (y0 - R * math.cos(math.pi / 4)))
+    assert math.isclose(rec[1, REC_STATE + 4], -beta_n / (1 + k * abs(vy)) * vy, rel_tol=1e-9)
+
+
+def test_world_g_is_the_kernels_g():
+    params = make_params(g=9.44)
+    _, _, _, _, rec, _ = run_one(params, [0.0, 0.2, -math.pi / 2, 0, 0, 0])
+    assert math.isclose(rec[1, REC_T], math.sqrt(2 * (0.2 - R) / 9.44), rel_tol=1e-12)
+
+
+def test_frictionless_table_keeps_horizontal_momentum(rng):
+    """With mu = 0 every contact force is vertical: vx of the centre of mass never changes,
+    through impacts and sliding pivots alike."""
+    cfg = make_config(model="rigid", beta_t=0.0, friction=0.0)
+    for state in random_states(rng, 20, y_range=(0.03, 0.1)):
+        report = roll_config(cfg, state=state)
+        vx = report.records[:, REC_STATE + 3]
+        assert np.allclose(vx, vx[0], atol=1e-9), vx
+
+
+@pytest.mark.parametrize("model", ["paper", "rigid"])
+@pytest.mark.parametrize("friction, drag", [(0.3, 0.0), (math.inf, 0.5), (0.6, 0.3)])
+def test_energy_never_increases_with_friction_and_drag(model, friction, drag, rng):
+    """The recorded energy is that of the recorded motion (so the check below is on the die's
+    energy, not on a number kept apart from it); it never rises from one segment to the next,
+    and over the roll some is lost."""
+    params = make_params(model=model, friction=friction, air_drag=drag, beta_t=0.0 if model == "rigid" else -0.35,
+                         separation=0.06)
+    inertia = params[0][FP_INERTIA]
+    for state in random_states(rng, 25, y_range=(0.03, 0.12)):
+        _, _, _, _, rec, _ = run_one(params, state)
+        energy = rec[:, REC_ENERGY]
+        _, y, _, vx, vy, omega = rec[:, REC_STATE : REC_STATE + 6].T
+        assert np.allclose(energy, 0.5 * (vx * vx + vy * vy + inertia * omega * omega) + G * y, rtol=1e-12, atol=0)
+        assert np.all(np.diff(energy) <= 1e-12 * np.abs(energy[:-1]) + 1e-15)
+        assert energy.size >= 2 and energy[-1] < 0.99 * energy[0]
+
+
+def test_loaded_die_centre_wobbles_about_the_com_parabola():
+    """Positions reported are the geometric centre's: in flight the centre of mass follows a
+    parabola exactly, the centre does not (it turns around the centre of mass)."""
+    offset = (0.004, 0.0)
+    cfg = make_config(com_offset=offset)
+    report = roll_config(cfg, state=[0.0, 0.3, 0.0, 0.0, 0.0, 30.0])
+    t = np.linspace(0.0, 0.12, 50)
+    centre = sample_path(cfg, report, t)
+    phi = centre[:, 2]
+    com_x = centre[:, 0] + offset[0] * np.cos(phi) - offset[1] * np.sin(phi)
+    com_y = centre[:, 1] + offset[0] * np.sin(phi) + offset[1] * np.cos(phi)
+    assert np.allclose(com_y, com_y[0] + (centre[0, 4] + 30.0 * offset[0]) * t - 0.5 * G * t * t, atol=1e-12)
+    assert np.allclose(com_x, com_x[0], atol=1e-12)
+    assert np.ptp(centre[:, 0]) > 0.007  # the centre circles the centre of mass
+
+
+def test_loaded_die_prefers_the_heavy_side(rng):
+    """A centre of mass moved towards side 2 of a square makes side 2 the most likely outcome
+    and barrier heights follow the centre-of-mass distances."""
+    states = random_states(rng, 800, y_range=(0.05, 0.2), omega_max=40.0)
+    fair, _, _, _ = run_batch(make_params(), states)
+    # side 2 of the square lies towards the body angle 5 pi/4 (between corners 2 and 3)
+    offset = 0.005 * np.array([math.cos(5 * math.pi / 4), math.sin(5 * math.pi / 4)])
+    loaded, status, _, _ = run_batch(make_params(com_offset=tuple(offset)), states)
+    assert np.all(status == STATUS_DECIDED)
+    share = np.bincount(loaded, minlength=4) / loaded.size
+    assert share[2] == share.max() and share[2] > np.mean(fair == 2) + 0.05
+
+
+def test_loaded_die_resting_flat_is_decided_on_its_side():
+    fpar, _ = make_params(com_offset=(0.002, -0.003))
+    centre = np.array([0.0, R * math.cos(math.pi / 4), math.pi / 4, 0.0, 0.0, 0.0])  # side 2 flat
+    com = np.empty(6)
+    shift_reference(centre, fpar, 1.0, com)
+    assert decided_side(com, fpar, 4) == 2
+    assert fpar[FP_INERTIA] == pytest.approx(R * R / 3 - (0.002**2 + 0.003**2), rel=1e-12)
+
+
+def test_flat_landing_while_sliding_slides_to_rest():
+    """A square landing flat while moving sideways slides on its side under friction and is
+    decided there (it once traded pivots between its two bottom corners until the event
+    budget ran out); followed to rest, it slides v^2 / (2 mu g)."""
+    from dice_sweep.physics.kernel import sample_batch
+    from dice_sweep.physics.params import IP_CONTINUE
+
+    mu, vx = 0.5, 0.4
+    # side 2 down, 1e-10 m above the table: the landing itself (one corner, a short sliding
+    # pivot, the other corner) then takes about 1e-4 of vx (one run: 6e-5)
+    y0 = R * math.cos(math.pi / 4) + 1e-10
+    state = np.array([[0.0, y0, math.pi / 4, vx, 0.0, 0.0]])
+    fpar, ipar = make_params(model="rigid", beta_n=0.0, beta_t=0.0, friction=mu, t_max=1.0)
+    outcome, status, _, _ = run_batch((fpar, ipar), state)
+    assert outcome[0] == 2 and status[0] == STATUS_DECIDED
+    ipar = ipar.copy()
+    ipar[IP_CONTINUE] = 1
+    out = np.zeros((1, 6))
+    sample_batch(fpar, ipar, state, np.array([0.9]), np.array([0, 1]), out, np.zeros(1, np.int8))
+    fall = math.sqrt(2 * 1e-10 / G)
+    assert out[0, 0] == pytest.approx(vx * fall + vx**2 / (2 * mu * G), rel=1e-3)
+    assert out[0, 3] == 0.0

@@ -5,7 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from tests.physics.conftest import make_params
+from dice_sweep.physics.kernel import REC_KIND, REC_STATE, SEG_PIVOT, SEG_PIVOT_ODE
+from dice_sweep.roll import roll_config, sample_path
+from tests.physics.conftest import TABLE1_RADIUS, make_config, make_params, run_one
 from dice_sweep.physics import pivot
 from dice_sweep.physics.pivot import (
     PIVOT_FLAT,
@@ -60,7 +62,7 @@ def test_pivot_time_matches_quadrature_and_is_fast_near_the_top(excess, monkeypa
 
     # the same functions run as Python (numba's py_func), with the loop of carlson_rf counted
     monkeypatch.setattr(pivot, "carlson_rf", carlson_rf.py_func)
-    monkeypatch.setattr(pivot, "_half_angle_integral", pivot._half_angle_integral.py_func)
+    monkeypatch.setattr(pivot, "half_angle_integral", pivot.half_angle_integral.py_func)
     monkeypatch.setattr(pivot, "range", counted_range, raising=False)
     assert math.isclose(pivot_time.py_func(chi_a, chi_b, e, R, G, ALPHA), exact, rel_tol=1e-14)
     assert len(steps) == 2 and max(steps) <= 12, steps
@@ -260,3 +262,42 @@ def test_closed_form_sticking_path_equals_the_ode(mu):
         assert abs(cf[3] - ode[3]) < 1e-11 * R
         assert abs(cf[4] - ode[4]) < 1e-11 * R / T_UNIT
     assert PIVOT_FLAT in kinds and PIVOT_LIFTOFF in kinds
+
+
+# --- pivots with friction, in whole rolls (issue 4) ----------------------------------------------
+
+
+def test_sticking_pivot_ode_matches_the_closed_form():
+    """A huge but finite friction sends pivots through the ODE path; they must reproduce the
+    closed-form (elliptic) pivot: same transfers, same omega after each, to 1e-7."""
+    sides = 6
+    chi0 = math.pi / 2 + math.pi / sides - 1e-6
+    omega0 = -math.sqrt(0.5 * G / TABLE1_RADIUS)
+    state = [TABLE1_RADIUS * math.cos(chi0), TABLE1_RADIUS * math.sin(chi0), chi0 + math.pi,
+             omega0 * -TABLE1_RADIUS * math.sin(chi0), omega0 * TABLE1_RADIUS * math.cos(chi0), omega0]
+    exact = run_one(make_params(sides=sides, beta_n=0.0, beta_t=0.0), state)
+    ode = run_one(make_params(sides=sides, beta_n=0.0, beta_t=0.0, friction=1e6), state)
+    assert exact[0] == ode[0]
+    assert math.isclose(exact[2], ode[2], rel_tol=1e-7)  # time of decision
+    w_exact = exact[4][exact[4][:, REC_KIND] == SEG_PIVOT, REC_STATE + 5]
+    w_ode = ode[4][ode[4][:, REC_KIND] == SEG_PIVOT_ODE, REC_STATE + 5]
+    assert len(w_ode) == len(w_exact) >= 2  # the transfers happen at the same corners
+    assert np.allclose(w_ode, w_exact, rtol=1e-7)  # with omega after each transfer
+
+
+def test_low_friction_lets_a_pivoting_corner_slide():
+    """A square rolling over a corner: with unlimited friction the corner stays put while the
+    die turns about it; with mu = 0.05 it slides."""
+    chi0 = math.pi / 2 + math.pi / 4 - 1e-6
+    omega0 = -math.sqrt(0.7 * G / TABLE1_RADIUS)  # over the top, no lift-off (as in the rolling test)
+    state = [TABLE1_RADIUS * math.cos(chi0), TABLE1_RADIUS * math.sin(chi0), chi0 + math.pi,
+             omega0 * -TABLE1_RADIUS * math.sin(chi0), omega0 * TABLE1_RADIUS * math.cos(chi0), omega0]
+    drift = {}
+    for friction in (math.inf, 0.05):
+        cfg = make_config(model="rigid", beta_t=0.0, friction=friction)
+        report = roll_config(cfg, state=state)
+        path = sample_path(cfg, report, np.linspace(0.0, 0.01, 11))
+        corner_x = path[:, 0] + TABLE1_RADIUS * np.cos(path[:, 2])  # corner 0, the pivot
+        drift[friction] = np.ptp(corner_x)
+    assert drift[math.inf] < 1e-9
+    assert drift[0.05] > 1e-5

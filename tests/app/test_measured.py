@@ -1,12 +1,17 @@
-"""`dice-sweep fit` and `dice-sweep diagnose` end to end on small CSVs from the independent
-generator: the JSON contract, --json alone, Markdown with few tracks, and bad input."""
-
+"""Tests of dice_sweep.app.measured: `dice-sweep calibrate`, `fit` and `diagnose` end to end on
+small CSVs from the independent generator - the JSON contract, --json alone, Markdown with few
+tracks, the residual picture, and bad input (one line, before the work)."""
 import json
 
 import numpy as np
 import pytest
 from matplotlib.colors import to_rgb
 
+from dice_sweep.app.measured import run_calibrate
+from dice_sweep.config import parse_config
+from dice_sweep.errors import DiceSweepError
+from dice_sweep.measured.calibrate import calibrate
+from dice_sweep.measured.tracks import load_tracks
 from tests.helpers import figure_pixels, invoke, near, png_size, read_png
 from tests.measured.cases import DECLARED_RIGID
 from tests.measured.cases import TRUTH as CASE_TRUTH
@@ -133,3 +138,20 @@ def test_a_damaged_gzip_file_is_a_one_line_error(files, tmp_path, command, damag
     assert str(data) in result.output and "Traceback" not in result.output
     assert len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "out.json").exists()
+
+
+def test_calibrate_writes_the_json_and_picture_of_the_result_it_returns(files, tmp_path):
+    data, config = files
+    cfg = parse_config(config.read_text(), str(config))
+    result, written = run_calibrate(data, cfg, json_path=tmp_path / "c.json", png_path=tmp_path / "c.png")
+    assert written == [tmp_path / "c.json", tmp_path / "c.png"]
+    expected = calibrate(load_tracks(data, sides=cfg.die.sides, circumradius=cfg.die.circumradius), cfg)
+    assert json.loads((tmp_path / "c.json").read_text()) == json.loads(json.dumps(expected.to_dict()))
+    assert result.to_dict() == expected.to_dict()
+    assert png_size(tmp_path / "c.png")[0] > 100
+
+
+def test_calibrate_checks_its_outputs_before_reading_the_data(tmp_path):
+    cfg = parse_config(CONFIG)
+    with pytest.raises(DiceSweepError, match="^--png: .*wrong file extension"):
+        run_calibrate(tmp_path / "no_such.csv", cfg, png_path=tmp_path / "c.txt")  # the data is never opened

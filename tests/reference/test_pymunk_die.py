@@ -1,4 +1,4 @@
-"""The pymunk reference die (dice_sweep.reference), and the kernel's rigid model checked against it.
+"""Tests of dice_sweep.reference.pymunk_die: the pymunk reference die, and the kernel's rigid model checked against it.
 
 docs/validation.md explains the set-up and where the thresholds come from.
 """
