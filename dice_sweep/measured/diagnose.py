@@ -565,7 +565,7 @@ def _select(cfg, seg, prepared, select_set, *, floor, sigmas, rng, seed, folds, 
         lin, red, e_current = _held_out(cfg, current, seg, fold)
         say(f"  added {best['effect']}: held-out {shooting.rms(e_current) * 1000:.3f} mm")
 
-    _, described = parameter_intervals(current, red, seg, cfg, rng, sigmas, bootstrap)
+    draws, described = parameter_intervals(current, red, seg, cfg, rng, sigmas, bootstrap)
     # an effect is named by the final model, not by the model it was added to: a later round's
     # refit moved one back to its null (angle_offset 0.0024 [-0.0006, 0.0053] rad, added at 0.03
     # on flat-landing drops: tests/measured/test_diagnose.py), or near it with a gain no longer
@@ -588,11 +588,11 @@ def _select(cfg, seg, prepared, select_set, *, floor, sigmas, rng, seed, folds, 
             removed.update({name: reason for name in step["effects"] if name not in removed})
             say(f"  removed {step['effect']}: {reason}")
         lin, red, e_current = _held_out(cfg, current, seg, fold)
-        _, described = parameter_intervals(current, red, seg, cfg, rng, sigmas, bootstrap)
+        draws, described = parameter_intervals(current, red, seg, cfg, rng, sigmas, bootstrap)
     for step in chain:
         step["removed"] = [name for name in step["effects"] if name in removed]
     return {"baseline": baseline, "current": current, "chain": chain, "rounds": rounds, "removed": removed,
-            "baseline_starts": baseline_starts, "e_current": e_current, "described": described}
+            "baseline_starts": baseline_starts, "e_current": e_current, "described": described, "draws": draws}
 
 
 class _Prefixed:
@@ -831,6 +831,16 @@ def diagnose(trackset, cfg, *, seed=0, folds=FOLDS, cross_folds=CROSS_FOLDS, can
     report["params"] = params
     report["bootstrap_draws"] = bootstrap_record(current.free, draws_after)
     report.update(fit_context(cfg, CONFIRM_FRACTION, seed))
+    if cross.folds == 2:
+        # what ``forecast`` reads: fold 0's model, chosen and fitted on fold 1's tracks, and the
+        # split whose held-out half is fold 0 (TrackSet.split(0.5, seed)): tracks it never saw
+        held = selections[0]["current"]
+        report["held_out_model"] = {
+            "fold": 0, "effects": list(declared) + list(held.spec.effects),
+            "params": {name: {key: entry[key] for key in ("value", "ci95", "unit")} for name, entry in selections[0]["described"].items()},
+            "bootstrap_draws": bootstrap_record(held.free, selections[0]["draws"]),
+            "split": {"confirm_fraction": 0.5, "seed": seed},
+            "note": "fold 0's model (effects chosen and fitted on fold 1's tracks); split's held-out half is fold 0"}
     report["by_bounce"], report["by_tilt"] = residual_by_bounce(cfg, report["_fits"])
     return report
 

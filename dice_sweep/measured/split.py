@@ -134,7 +134,14 @@ def cross_fit_tracks(trackset, cfg, seed=0, folds=CROSS_FOLDS):
             f"{trackset.path}: tracks: {len(prepared)} tracks have a first free flight of {shooting.MIN_FLIGHT_FRAMES} frames or more "
             f"(allowed: at least {least}, so that every cross-fitting fold is chosen on {MIN_TRACKS} or more; "
             f"{len(trackset.tracks)} tracks in the file)")
-    fold = assign_folds(prepared, count, f"cross:{seed}")
+    if count == 2:
+        # halves as TrackSet.split(0.5, seed) makes them, its held-out half fold 0: a
+        # ``forecast`` of diagnose's held_out_model (fold 0's, chosen on fold 1) scores the
+        # tracks that model never saw
+        held = {track.traj for track in trackset.split(0.5, seed)[1].tracks}
+        fold = np.array([0 if p.traj in held else 1 for p in prepared], dtype=np.int64)
+    else:
+        fold = assign_folds(prepared, count, f"cross:{seed}")
     return CrossFit(table, noise, sigma, trackset, prepared, shooting.Segments(prepared, cfg.world.g), fold, count, cfg.world.g)
 
 

@@ -154,3 +154,28 @@ def test_an_effect_that_leaves_a_formula_where_it_acts_is_a_stand_in():
     # everywhere) are not tested so
     assert out["inertia"]["cause"] == "cause" and out["table_offset"]["cause"] == "cause"
     assert consistency.left_where_it_acts(judged("air_drag"), [])["air_drag"]["cause"] == "cause"
+
+
+def test_halves_are_the_split_forecast_holds_out(tracks):
+    """With two folds, fold 0 is the held-out half of TrackSet.split(0.5, seed): a forecast of
+    diagnose's held_out_model (chosen on fold 1) scores tracks that model never saw."""
+    cross = cross_fit_tracks(tracks, CFG, seed=4)
+    assert cross.folds == 2
+    held = {t.traj for t in tracks.split(0.5, 4)[1].tracks}
+    assert {p.traj for p, k in zip(cross.prepared, cross.fold) if k == 0} == held & {p.traj for p in cross.prepared}
+
+
+def test_forecast_reads_the_held_out_model_of_a_cross_fitted_diagnose():
+    from dice_sweep.measured.forecast import parse_fit
+
+    params = {"beta_normal": {"value": 0.41, "ci95": [0.40, 0.42]}, "beta_tangential": {"value": 0.0, "ci95": [-0.01, 0.01]},
+              "friction": {"value": 0.3, "ci95": [0.29, 0.31]}}
+    held = {name: dict(entry, value=entry["value"] + 0.001) for name, entry in params.items()}
+    data = {"effects_added": [], "after": {"params": params, "effects": ["corner_impulse", "coulomb_friction"]},
+            "bootstrap_draws": {"names": list(params), "values": [[0.41, 0.0, 0.3]]}, "split": {"confirm_fraction": 0.3, "seed": 0},
+            "held_out_model": {"effects": ["corner_impulse", "coulomb_friction"], "params": held,
+                               "bootstrap_draws": {"names": list(params), "values": [[0.411, 0.001, 0.301], [0.412, 0.0, 0.3]]},
+                               "split": {"confirm_fraction": 0.5, "seed": 7}}}
+    source = parse_fit(data, "r.json", CFG, 0.3, 0)
+    assert source.params == {name: entry["value"] for name, entry in held.items()}
+    assert (source.confirm_fraction, source.seed) == (0.5, 7) and source.draws.shape == (2, 3)
