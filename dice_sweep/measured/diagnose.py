@@ -831,7 +831,7 @@ def diagnose(trackset, cfg, *, seed=0, folds=FOLDS, cross_folds=CROSS_FOLDS, can
     report["params"] = params
     report["bootstrap_draws"] = bootstrap_record(current.free, draws_after)
     report.update(fit_context(cfg, CONFIRM_FRACTION, seed))
-    if cross.folds == 2:
+    if cross.file_halves:
         # what ``forecast`` reads: fold 0's model, chosen and fitted on fold 1's tracks, and the
         # split whose held-out half is fold 0 (TrackSet.split(0.5, seed)): tracks it never saw
         held = selections[0]["current"]

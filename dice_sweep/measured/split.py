@@ -92,6 +92,7 @@ class CrossFit:
     fold: np.ndarray  # fold of each prepared track
     folds: int
     g: float  # m/s^2, the config's (the segments' ballistic guesses)
+    file_halves: bool = False  # the folds are TrackSet.split(0.5, seed)'s halves, fold 0 held out
 
     def part(self, k):
         """Fold k as (training prepared tracks, their Segments, their TrackSet, bool mask of the
@@ -134,15 +135,18 @@ def cross_fit_tracks(trackset, cfg, seed=0, folds=CROSS_FOLDS):
             f"{trackset.path}: tracks: {len(prepared)} tracks have a first free flight of {shooting.MIN_FLIGHT_FRAMES} frames or more "
             f"(allowed: at least {least}, so that every cross-fitting fold is chosen on {MIN_TRACKS} or more; "
             f"{len(trackset.tracks)} tracks in the file)")
+    file_halves = False
     if count == 2:
         # halves as TrackSet.split(0.5, seed) makes them, its held-out half fold 0: a
         # ``forecast`` of diagnose's held_out_model (fold 0's, chosen on fold 1) scores the
-        # tracks that model never saw
+        # tracks that model never saw; balanced halves when the unusable tracks leave a side short
         held = {track.traj for track in trackset.split(0.5, seed)[1].tracks}
         fold = np.array([0 if p.traj in held else 1 for p in prepared], dtype=np.int64)
-    else:
+        file_halves = min(int(np.sum(fold == 0)), int(np.sum(fold == 1))) >= MIN_TRACKS
+    if not file_halves:
         fold = assign_folds(prepared, count, f"cross:{seed}")
-    return CrossFit(table, noise, sigma, trackset, prepared, shooting.Segments(prepared, cfg.world.g), fold, count, cfg.world.g)
+    return CrossFit(table, noise, sigma, trackset, prepared, shooting.Segments(prepared, cfg.world.g), fold, count, cfg.world.g,
+                    file_halves)
 
 
 def assign_folds(prepared, count, seed):

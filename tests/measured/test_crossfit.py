@@ -160,7 +160,7 @@ def test_halves_are_the_split_forecast_holds_out(tracks):
     """With two folds, fold 0 is the held-out half of TrackSet.split(0.5, seed): a forecast of
     diagnose's held_out_model (chosen on fold 1) scores tracks that model never saw."""
     cross = cross_fit_tracks(tracks, CFG, seed=4)
-    assert cross.folds == 2
+    assert cross.folds == 2 and cross.file_halves
     held = {t.traj for t in tracks.split(0.5, 4)[1].tracks}
     assert {p.traj for p, k in zip(cross.prepared, cross.fold) if k == 0} == held & {p.traj for p in cross.prepared}
 
