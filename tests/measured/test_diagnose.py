@@ -334,6 +334,20 @@ def test_the_same_physics_drawn_twice_gets_the_same_verdict(tmp_path, case):
             assert report["proposals"]
 
 
+@pytest.mark.slow
+def test_drag_standing_in_for_a_tilted_table_is_called_a_stand_in(tmp_path):
+    """A table tilted by 3 degrees (outside the library): both folds add air_drag, whose value
+    agrees on every split (the flights moving towards +x put it at its bound 0 with a wide
+    interval), but the named model leaves flight.x_acc ~ 1 at g sin 3 deg: a stand-in, and the
+    verdict names no cause (scripts/cause_calibration.py, seeds 1 and 2)."""
+    report = run_loop(tmp_path, dict(TRUTH, table_tilt=math.radians(3.0)))
+    assert set(causes(report).values()) <= {"stand_in"}, report["effects"]
+    assert report["verdict"] == "unexplained"
+    constant = {p["target"]: p for p in report["proposals"]}["flight.x_acc"]
+    low, high = constant["ci95"]["1"]
+    assert low <= 9.81 * math.sin(math.radians(3.0)) * 1.02 and high >= 9.81 * math.sin(math.radians(3.0)) * 0.98, constant
+
+
 @pytest.fixture(scope="module")
 def four_times_the_noise(tmp_path_factory):
     return run_loop(tmp_path_factory.mktemp("noise4"), dict(TRUTH, air_drag=0.8), noise=(8e-4, 16e-3))
