@@ -385,6 +385,23 @@ def marked_tracks(e_current, e_cand, floor):
     return int(np.sum(change > MARKED * floor)), int(np.sum(change < -MARKED * floor))
 
 
+ALIKE = 1e-3  # of the noise floor: candidates whose every track's held-out error differs by less fit alike
+
+
+def best_candidate(accepted, pool, floor):
+    """The accepted candidate that removes most of the excess error, and the names of those
+    that fit these tracks alike (every track's held-out error within ALIKE x the floor of
+    its). Among candidates alike, the one with fewest effects, then first in ``pool`` (the
+    registry's order) is taken: with an infinite friction the corner impulse and both friction
+    rules stick at every impact and fit identically (excess shares 1.0004 and 0.9999), and the
+    pick between them was the rounding's; now it is the simplest, the others reported."""
+    top = max(accepted, key=lambda r: r["excess_share"])
+    alike = [r for r in accepted if np.allclose(r["errors"], top["errors"], rtol=0.0, atol=ALIKE * floor, equal_nan=True)]
+    order = {name: k for k, name in enumerate(pool)}
+    best = min(alike, key=lambda r: (len(r["effects"]), [order.get(name, len(order)) for name in r["effects"]]))
+    return best, [r["effect"] for r in alike if r is not best]
+
+
 def untried_effects(pool, spec):
     """Candidates of a round: those not in the model, and not indistinguishable from one in it
     or from one earlier in the pool (the registry's ``equivalent``: the same fit twice)."""
@@ -542,9 +559,10 @@ def _select(cfg, seg, prepared, select_set, *, floor, sigmas, rng, seed, folds, 
         if not accepted:
             say(f"  stop: no candidate passes (threshold z = {threshold:.2f})")
             break
-        best = max(accepted, key=lambda r: r["excess_share"])
+        best, alike = best_candidate(accepted, pool, floor)
         equivalent = sorted({e for name in best["effects"] for e in registry.effect(name).equivalent})
         chain.append({"step": len(chain) + 1, "effect": best["effect"], "effects": best["effects"], "equivalent": equivalent,
+                      "alike_here": alike,
                       "z": best["z"], "threshold_z": threshold, "excess_share": best["excess_share"], "test_error": best["test_error"],
                       "median_error": best["median_error"], "worse_tracks": best["worse_tracks"], "better_tracks": best["better_tracks"],
                       "worst_before": _worst(trajs, e_current, best["errors"]), "worst_after": _worst(trajs, best["errors"], e_current)})

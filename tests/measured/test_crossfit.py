@@ -140,3 +140,23 @@ def test_forecast_reads_the_held_out_model_of_a_cross_fitted_diagnose():
     source = parse_fit(data, "r.json", CFG, 0.3, 0)
     assert source.params == {name: entry["value"] for name, entry in held.items()}
     assert (source.confirm_fraction, source.seed) == (0.5, 7) and source.draws.shape == (2, 3)
+
+
+def test_candidates_that_fit_alike_give_the_simplest():
+    floor = 1e-4
+    errors = np.array([2e-4, 3e-4, 1e-4])
+
+    def cand(effects, share, shift=0.0):
+        return {"effect": "+".join(effects), "effects": list(effects), "excess_share": share, "errors": errors + shift}
+
+    pool = ["corner_impulse", "air_drag", "sliding_friction", "exact_coulomb"]
+    # with an infinite friction the three contact rules fit identically, the rounding deciding the largest share
+    accepted = [cand(["exact_coulomb"], 1.0004), cand(["sliding_friction"], 0.9999, 1e-9), cand(["corner_impulse"], 0.9998, -1e-9)]
+    best, alike = loop.best_candidate(accepted, pool, floor)
+    assert best["effect"] == "corner_impulse" and sorted(alike) == ["exact_coulomb", "sliding_friction"]
+    # one that fits differently is not alike, and the largest share still wins
+    best, alike = loop.best_candidate([cand(["air_drag"], 0.9, 5e-5), cand(["exact_coulomb"], 0.95)], pool, floor)
+    assert best["effect"] == "exact_coulomb" and alike == []
+    # a pair alike a single effect gives the single one
+    best, _ = loop.best_candidate([cand(["air_drag", "corner_impulse"], 0.99), cand(["exact_coulomb"], 0.98)], pool, floor)
+    assert best["effect"] == "exact_coulomb"
