@@ -385,21 +385,29 @@ def marked_tracks(e_current, e_cand, floor):
     return int(np.sum(change > MARKED * floor)), int(np.sum(change < -MARKED * floor))
 
 
-ALIKE = 1e-3  # of the noise floor: candidates whose every track's held-out error differs by less fit alike
+ALIKE_SHARE = 0.01  # candidates whose shares of the excess differ by less, and
+ALIKE_Z = 1.96  # whose per-track errors no signed-rank test tells apart, fit alike
 
 
-def best_candidate(accepted, pool, floor):
+def best_candidate(accepted, pool):
     """The accepted candidate that removes most of the excess error, and the names of those
-    that fit these tracks alike (every track's held-out error within ALIKE x the floor of
-    its). Among candidates alike, the one with fewest effects, then first in ``pool`` (the
-    registry's order) is taken: with an infinite friction the corner impulse and both friction
-    rules stick at every impact and fit identically (excess shares 1.0004 and 0.9999), and the
-    pick between them was the rounding's; now it is the simplest, the others reported."""
+    that fit these tracks alike (a share within ALIKE_SHARE of its, and |z| < ALIKE_Z in a
+    two-sided signed-rank test of the per-track squared errors). Among candidates alike, the
+    one with fewest effects, then first in ``pool`` (the registry's order) is taken: with an
+    infinite friction the corner impulse and both friction rules stick at every impact and fit
+    alike (shares 1.0004 and 0.9999, tracks apart by the refits' rounding), and the pick
+    between them was the rounding's, differing between folds; now it is the simplest, the
+    others reported."""
     top = max(accepted, key=lambda r: r["excess_share"])
-    alike = [r for r in accepted if np.allclose(r["errors"], top["errors"], rtol=0.0, atol=ALIKE * floor, equal_nan=True)]
+
+    def alike(r):
+        return (r is top or top["excess_share"] - r["excess_share"] < ALIKE_SHARE
+                and abs(signed_rank_z(np.asarray(top["errors"]) ** 2 - np.asarray(r["errors"]) ** 2)) < ALIKE_Z)
+
+    same = [r for r in accepted if alike(r)]
     order = {name: k for k, name in enumerate(pool)}
-    best = min(alike, key=lambda r: (len(r["effects"]), [order.get(name, len(order)) for name in r["effects"]]))
-    return best, [r["effect"] for r in alike if r is not best]
+    best = min(same, key=lambda r: (len(r["effects"]), [order.get(name, len(order)) for name in r["effects"]]))
+    return best, [r["effect"] for r in same if r is not best]
 
 
 def untried_effects(pool, spec):
@@ -559,7 +567,7 @@ def _select(cfg, seg, prepared, select_set, *, floor, sigmas, rng, seed, folds, 
         if not accepted:
             say(f"  stop: no candidate passes (threshold z = {threshold:.2f})")
             break
-        best, alike = best_candidate(accepted, pool, floor)
+        best, alike = best_candidate(accepted, pool)
         equivalent = sorted({e for name in best["effects"] for e in registry.effect(name).equivalent})
         chain.append({"step": len(chain) + 1, "effect": best["effect"], "effects": best["effects"], "equivalent": equivalent,
                       "alike_here": alike,

@@ -143,20 +143,24 @@ def test_forecast_reads_the_held_out_model_of_a_cross_fitted_diagnose():
 
 
 def test_candidates_that_fit_alike_give_the_simplest():
-    floor = 1e-4
-    errors = np.array([2e-4, 3e-4, 1e-4])
+    rng = np.random.default_rng(3)
+    errors = rng.uniform(1e-4, 5e-4, 40)
 
-    def cand(effects, share, shift=0.0):
-        return {"effect": "+".join(effects), "effects": list(effects), "excess_share": share, "errors": errors + shift}
+    def cand(effects, share, errors=errors):
+        return {"effect": "+".join(effects), "effects": list(effects), "excess_share": share, "errors": errors}
 
     pool = ["corner_impulse", "air_drag", "sliding_friction", "exact_coulomb"]
-    # with an infinite friction the three contact rules fit identically, the rounding deciding the largest share
-    accepted = [cand(["exact_coulomb"], 1.0004), cand(["sliding_friction"], 0.9999, 1e-9), cand(["corner_impulse"], 0.9998, -1e-9)]
-    best, alike = loop.best_candidate(accepted, pool, floor)
+    # with an infinite friction the three contact rules fit alike, the refits' rounding deciding the largest share
+    jitter = errors * (1 + 1e-3 * rng.standard_normal(40))
+    accepted = [cand(["exact_coulomb"], 1.0004), cand(["sliding_friction"], 0.9999, jitter), cand(["corner_impulse"], 0.9986, jitter[::-1])]
+    best, alike = loop.best_candidate(accepted, pool)
     assert best["effect"] == "corner_impulse" and sorted(alike) == ["exact_coulomb", "sliding_friction"]
-    # one that fits differently is not alike, and the largest share still wins
-    best, alike = loop.best_candidate([cand(["air_drag"], 0.9, 5e-5), cand(["exact_coulomb"], 0.95)], pool, floor)
+    # a share clearly smaller is not alike, and the largest share wins
+    best, alike = loop.best_candidate([cand(["air_drag"], 0.9), cand(["exact_coulomb"], 0.95)], pool)
+    assert best["effect"] == "exact_coulomb" and alike == []
+    # nor is one whose tracks are systematically apart, however close the shares
+    best, alike = loop.best_candidate([cand(["corner_impulse"], 0.949, errors * 1.05), cand(["exact_coulomb"], 0.95)], pool)
     assert best["effect"] == "exact_coulomb" and alike == []
     # a pair alike a single effect gives the single one
-    best, _ = loop.best_candidate([cand(["air_drag", "corner_impulse"], 0.99), cand(["exact_coulomb"], 0.98)], pool, floor)
+    best, _ = loop.best_candidate([cand(["air_drag", "corner_impulse"], 0.99), cand(["exact_coulomb"], 0.985, jitter)], pool)
     assert best["effect"] == "exact_coulomb"
