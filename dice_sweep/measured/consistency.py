@@ -97,14 +97,27 @@ def _sd(entry):
     return (high - low) / (2.0 * Z95)
 
 
-def compare(name, first, second):
-    """One parameter on two parts: values, intervals and z (NaN when a side has no interval)."""
+# A part fit starts from the value on all tracks; two independent parts land about one sd of
+# their difference apart, so sides that both stay within MIN_MOVE of it did not refit (on the
+# real drops friction moved 2e-5 on halves whose sd is 3e-3: |z| <= 0.007 on all three splits,
+# odds about 1e-7 for parts that did refit) and cannot say that they agree.
+MIN_MOVE = 0.05  # of the sd of the two parts' difference
+
+
+def compare(name, first, second, start=None):
+    """One parameter on two parts: values, intervals and z (NaN when a side has no interval).
+    With ``start`` (the value on all tracks that both part fits started from), a comparison in
+    which neither side moved from it by MIN_MOVE x the sd of the difference is not testable
+    (``moved`` false): the part fits stayed where they started."""
     a, b = first["params"][name], second["params"][name]
     sd_a, sd_b = _sd(a), _sd(b)
     spread = math.hypot(sd_a, sd_b)
     z = (a["value"] - b["value"]) / spread if math.isfinite(spread) and spread > 0 else math.nan
+    moved = bool(start is None or not math.isfinite(z)
+                 or max(abs(a["value"] - start), abs(b["value"] - start)) > MIN_MOVE * spread)
+    testable = bool(math.isfinite(z) and moved)
     return {"param": name, "values": [a["value"], b["value"]], "ci95": [list(a["ci95"]), list(b["ci95"])],
-            "z": z, "agree": bool(not math.isfinite(z) or abs(z) <= Z_AGREE), "testable": bool(math.isfinite(z))}
+            "z": z, "moved": moved, "agree": bool(not testable or abs(z) <= Z_AGREE), "testable": testable}
 
 
 COUNTED = ("flight_vertical_curvature", "flight_deceleration", "flight_wobble_at_spin", "flight_spin_change")
@@ -196,7 +209,7 @@ def consistency(cfg, fit, segments, halves, signatures_before, floor, seed, sigm
             for p in registry.effect(name).params:
                 if one is None or two is None or p.name not in one["params"]:
                     continue
-                entry = compare(p.name, one, two)
+                entry = compare(p.name, one, two, start=fit.params.get(p.name))
                 entry["split"] = split
                 entry["sides"] = [{"segments": one["segments"], "tracks": one["tracks"]}, {"segments": two["segments"], "tracks": two["tracks"]}]
                 comparisons.append(entry)
@@ -207,6 +220,11 @@ def consistency(cfg, fit, segments, halves, signatures_before, floor, seed, sigm
         failed = [f"{c['split']}: {c['param']} z = {c['z']:.2f}" for c in comparisons if not c["agree"]]
         if counts and not present:
             failed.append(f"signature {signature} not present before the effect was added")
+        if registry.effect(name).params and not any(c["testable"] for c in comparisons) and not (counts and present):
+            # a value that no split could test and no signature backs is not shown to be one thing
+            stuck = [f"{c['split']}: {c['param']}" for c in comparisons if not c["moved"]]
+            failed.append("untested: no split refitted it" + (f" (the part fits stayed at the value on all tracks: {', '.join(stuck)})"
+                                                              if stuck else ""))
         out[name] = {"cause": "stand_in" if failed else "cause",
                      "consistency": {"test": TEST, "passed": not failed, "z_limit": Z_AGREE, "comparisons": comparisons,
                                      "signature": {"name": signature or None, "present_before": present, "counts": counts, "value": before.get("value"),

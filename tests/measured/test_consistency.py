@@ -61,3 +61,43 @@ def test_flight_index_counts_flights_within_each_track():
     # three tracks with 2, 1 and 3 flights
     segments = SimpleNamespace(count=6, track=np.array([0, 0, 1, 2, 2, 2]), track_segment_starts=np.array([0, 2, 3]))
     assert consistency.flight_index(segments).tolist() == [0, 1, 0, 0, 1, 2]
+
+
+def test_parts_that_stayed_at_their_start_cannot_agree():
+    def part(value, low, high):
+        return {"params": {"friction": {"value": value, "ci95": [low, high], "identified": True}}}
+
+    # the real drops' friction on two halves: both part fits stayed within 3e-5 of the value on
+    # all tracks that they started from, where two halves that refit differ by about 3e-3
+    stuck = consistency.compare("friction", part(0.07955, 0.0731, 0.0857), part(0.07957, 0.0735, 0.0853), start=0.07957)
+    assert not stuck["moved"] and not stuck["testable"] and stuck["agree"]
+    refit = consistency.compare("friction", part(0.0781, 0.0731, 0.0857), part(0.0809, 0.0735, 0.0853), start=0.07957)
+    assert refit["moved"] and refit["testable"] and refit["agree"]
+    # without a start (a comparison of two fits from their own starts) a finite z is testable
+    assert consistency.compare("friction", part(0.07955, 0.0731, 0.0857), part(0.07957, 0.0735, 0.0853))["testable"]
+
+
+def test_an_effect_no_split_could_refit_is_a_stand_in():
+    from types import SimpleNamespace
+
+    count = 40
+    segments = SimpleNamespace(count=count, track=np.arange(count) // 2, track_segment_starts=np.arange(0, count, 2))
+    states = np.zeros((count, 6))
+    states[::3, 3] = -0.1  # some flights move towards -x
+    fit = SimpleNamespace(spec=SimpleNamespace(effects=("coulomb_friction",)), states=states, params={"friction": 0.08})
+
+    def parts(shift):
+        def mapper(function, tasks):
+            return [{"segments": 20, "tracks": 10, "params": {"friction": {"value": 0.08 + (shift if k % 2 else -shift),
+                                                                           "ci95": [0.074, 0.086], "identified": True}}}
+                    for k, _ in enumerate(tasks)]
+        return mapper
+
+    halves = np.arange(count) < count // 2
+    args = (None, fit, segments, halves, [], 1e-4, 0, None, 10)
+    stuck = consistency.consistency(*args, mapper=parts(1e-5))["coulomb_friction"]
+    assert stuck["cause"] == "stand_in" and any(f.startswith("untested") for f in stuck["consistency"]["failed"])
+    refit = consistency.consistency(*args, mapper=parts(1e-3))["coulomb_friction"]
+    assert refit["cause"] == "cause", refit["consistency"]["failed"]
+    apart = consistency.consistency(*args, mapper=parts(6e-3))["coulomb_friction"]
+    assert apart["cause"] == "stand_in" and not any(f.startswith("untested") for f in apart["consistency"]["failed"])
