@@ -499,7 +499,7 @@ def _dp5_contact(y, h, mode, rho, arc, inertia, g, mu, c, scale, k, tmp, out):
     return err
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")  # in pivot_ode: as a call (three array arguments) it cost reference counts per bisection step
 def _dp5_dense(y, h, k, theta, out):
     """State a fraction ``theta`` into the last Dormand-Prince step from y (quartic, error
     of the order of the step's own)."""
@@ -528,7 +528,7 @@ def _sticking_event(chi, omega, rho, g, mu, normal, friction, drag_accel):
     return 0
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")  # in pivot_ode: as a call (four array arguments) it cost reference counts per test
 def _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit):
     """The event that holds in contact state y (0: none), with ``hit`` for impacts.
 
