@@ -398,8 +398,8 @@ def _rolling_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c):
 
 
 # Scalars in and out, no arrays: an array argument costs a reference count up and down per
-# call, and the ODE called this seven times a step (its arrays made a sliding pivot about
-# 1.4 x dearer; scripts/bench_kernel.py, rigid law). Results bit for bit as before.
+# call, and the ODE calls this seven times a step (with arrays the rigid law's roll took 8.4
+# instead of 7.1 us of CPU; scripts/bench_kernel.py). Results bit for bit as before.
 @numba.njit(cache=True)
 def _contact_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c):
     """Time derivatives (chi', omega', xp', up') of y = (chi, omega, xp, up), then (N, F_needed)
