@@ -31,6 +31,8 @@ CASES = (
     GoldenCase("fig08", "fig08.toml"),
     GoldenCase("fig08_rigid", "fig08_rigid.toml"),
     GoldenCase("fig08_rigid_friction", "fig08_rigid.toml", ("contact.friction=0.5",)),
+    # issue 33's rigid law (the one the measured drops choose), pinned before its kernel was made faster
+    GoldenCase("fig08_rigid_mu05_bt0", "fig08.toml", ("contact.model=rigid", "contact.friction=0.5", "contact.beta_tangential=0")),
     GoldenCase("fig08_air_drag", "fig08.toml", ("effects.air_drag=0.5", "contact.model=rigid", "contact.friction=0.3")),
     GoldenCase("fig09", "fig09.toml"),
     GoldenCase("fig11", "fig11.toml"),

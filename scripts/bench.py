@@ -13,8 +13,12 @@ Prints a Markdown table; ``--write`` puts it into docs/performance.md. Public AP
    with an empty NUMBA_CACHE_DIR, on the engine the tool chooses and with the compile forced,
    then warm; ``--write`` puts it into docs/cold_start.md. ``--cold`` runs this part only.
 
-    python scripts/bench.py [--num 128] [--sweep-num 1024] [--long-num 4096] [--pymunk-rolls 200] [--write]
+    python scripts/bench.py [--num 128] [--sweep-num 1024] [--long-num 4096] [--pymunk-rolls 200] [--skip-cold] [--write]
     python scripts/bench.py --cold [--write]
+
+Every timed row gives min / median / max of its runs (the kernel rows in CPU time of the
+process, the commands in wall time), and the page ends with the machine's load average
+before and after (``os.getloadavg``): on a shared machine the numbers move with it.
 """
 
 import argparse
@@ -38,8 +42,14 @@ ROOT = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "dice_sweep"]
 
 
+def spread(values):
+    """(min, median, max) of a list of numbers."""
+    return min(values), float(np.median(values)), max(values)
+
+
 def kernel_rate(cfg, states, repeat=3):
-    """(rolls/s, impacts per roll) of roll_batch in this process, best of ``repeat``."""
+    """(rolls/s as (min, median, max) over ``repeat`` runs, impacts per roll) of roll_batch in
+    this process; CPU time of the process (wall time on a shared machine counts the waits)."""
     fpar, ipar = pack_params(cfg)
     n = states.shape[0]
     outcome = np.empty(n, np.int8)
@@ -47,12 +57,12 @@ def kernel_rate(cfg, states, repeat=3):
     counts = np.empty((n, len(COUNT_COLUMNS)), np.int32)
     t_decided = np.empty(n)
     roll_batch(fpar, ipar, states[:2], outcome[:2], status[:2], counts[:2], t_decided[:2])  # compile/load
-    best = float("inf")
+    rates = []
     for _ in range(repeat):
-        start = time.perf_counter()
+        start = time.process_time()
         roll_batch(fpar, ipar, states, outcome, status, counts, t_decided)
-        best = min(best, time.perf_counter() - start)
-    return n / best, counts[:, 0].mean()
+        rates.append(n / (time.process_time() - start))
+    return spread(rates), counts[:, 0].mean()
 
 
 def pymunk_rate(cfg, states, rolls, seed=0, repeat=3):
@@ -75,18 +85,24 @@ def sweep_command(config, num, out, workers):
 
 
 def cli_sweep_times(config, num, repeat, tmp):
-    """{workers: best wall time} of the whole `sweep` command at num x num, 1 and 2 workers
-    alternating, so that both see the same machine."""
-    best = {1: float("inf"), 2: float("inf")}
+    """{workers: (min, median, max) wall time} of the whole `sweep` command at num x num, 1 and
+    2 workers alternating, so that both see the same machine."""
+    times = {1: [], 2: []}
     for attempt in range(repeat):
         for workers in (1, 2):
-            best[workers] = min(best[workers], timed(sweep_command(config, num, tmp / f"n{num}-w{workers}-{attempt}.h5", workers)))
-    return best
+            out = tmp / f"n{num}-w{workers}-{attempt}.h5"
+            times[workers].append(timed(sweep_command(config, num, out, workers)))
+            out.unlink()
+    return {workers: spread(values) for workers, values in times.items()}
+
+
+def seconds(values):
+    return " / ".join(f"{value:.2f}" for value in values)
 
 
 def sweep_rows(num, repeat, times):
-    return [f"| `dice-sweep sweep configs/fig08.toml` at {num} x {num}, 1 worker (best of {repeat}) | {times[1]:.2f} |",
-            f"| same, 2 workers | {times[2]:.2f} (speed-up **{times[1] / times[2]:.2f}**) |"]
+    return [f"| `dice-sweep sweep configs/fig08.toml` at {num} x {num}, 1 worker ({repeat} runs) | {seconds(times[1])} |",
+            f"| same, 2 workers | {seconds(times[2])} (speed-up of the medians **{times[1][1] / times[2][1]:.2f}**) |"]
 
 
 def timed(command, env=None):
@@ -151,11 +167,14 @@ def main():
     parser.add_argument("--pymunk-rolls", type=int, default=200)
     parser.add_argument("--write", action="store_true", help="write docs/performance.md and docs/cold_start.md")
     parser.add_argument("--cold", action="store_true", help="only the cold-start part (docs/cold_start.md)")
+    parser.add_argument("--skip-cold", action="store_true", help="leave out the cold-start part (minutes of compiling)")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory() as tmp:
-        publish(cold_start_markdown(Path(tmp)), "cold_start.md", "cold_start_intro.md", args.write)
+    if not args.skip_cold:
+        with tempfile.TemporaryDirectory() as tmp:
+            publish(cold_start_markdown(Path(tmp)), "cold_start.md", "cold_start_intro.md", args.write)
     if args.cold:
         return 0
+    load_before = os.getloadavg()
     fig08 = ROOT / "configs" / "fig08.toml"
     cfg = load_config(fig08, [f"grid.x.num={args.num}", f"grid.y.num={args.num}"])
     states = initial_states(cfg, axis_values(cfg.grid.x), axis_values(cfg.grid.y))
@@ -171,12 +190,14 @@ def main():
     rows.append(("fixed_step kernel, paper law, dt = 1e-3 s", fixed_rate, fixed_impacts))
     munk = pymunk_rate(rigid, states, args.pymunk_rolls)
     lines = [f"Grid: fig08's ranges at {args.num} x {args.num} = {states.shape[0]} rolls (pymunk: "
-             f"{min(args.pymunk_rolls, states.shape[0])} of them), Table I die. One process.", "",
-             "| simulator | rolls/s (one core) | impacts per roll | ns per impact |", "|---|---|---|---|"]
+             f"{min(args.pymunk_rolls, states.shape[0])} of them), Table I die. One process; rolls per CPU second, "
+             "worst / median / best of the runs.", "",
+             "| simulator | rolls/s (one core) | impacts per roll | ns per impact (median) |", "|---|---|---|---|"]
     for name, rate, impacts in rows:
-        lines.append(f"| {name} | {rate:,.0f} | {impacts:.2f} | {1e9 / (rate * impacts):,.0f} |")
+        lines.append(f"| {name} | {rate[2]:,.0f} / {rate[1]:,.0f} / {rate[0]:,.0f} | {impacts:.2f} | {1e9 / (rate[1] * impacts):,.0f} |")
     lines.append(f"| pymunk (Chipmunk2D), rigid law as above, dt = 1e-4 s (per CPU second, best of 3) | {munk:,.1f} | - | - |")
-    lines += ["", f"Event kernel (rigid) / pymunk, same physics, per core: **{rigid_rate / munk:,.0f} x**.", ""]
+    lines += ["", f"Event kernel (rigid) / pymunk, same physics, per core (medians): **{rigid_rate[1] / munk:,.0f} x**; "
+              f"the rigid law's cost per roll over the paper law's (medians): {paper_rate[1] / rigid_rate[1]:.2f}.", ""]
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         sweep_times = cli_sweep_times(fig08, args.sweep_num, 3, tmp)
@@ -194,7 +215,7 @@ def main():
                 in_process[workers] = min(in_process[workers], time.perf_counter() - begin)
                 if workers == 2:
                     parent_cpu = min(parent_cpu, time.process_time() - cpu)
-    lines += ["| command | wall time (s) |", "|---|---|", *sweep_rows(args.sweep_num, 3, sweep_times)]
+    lines += ["| command | wall time (s), min / median / max |", "|---|---|", *sweep_rows(args.sweep_num, 3, sweep_times)]
     if long_times:
         lines += sweep_rows(args.long_num, args.long_repeat, long_times)
     lines += ["", "Cold starts (an empty numba cache): [cold_start.md](cold_start.md).", "",
@@ -205,13 +226,16 @@ def main():
               f"{in_process[1]:.2f} | {in_process[2]:.2f} | {in_process[1] / in_process[2]:.2f} |", "",
               f"With 2 workers the parent, which receives, writes and records the {big_tiles} tiles, used "
               f"{parent_cpu:.2f} s of CPU (best of 3), on the same 2 cores as the workers."]
+    load_after = os.getloadavg()
     if long_times:
-        share = start_cost / long_times[1]
+        share = start_cost / long_times[1][1]  # of the median 1-worker command
         parallel = in_process[1] / in_process[2]
         lines += ["", f"At {args.long_num} x {args.long_num} the fixed start is {share:.1%} of the 1-worker command. "
                   f"Amdahl's law with that share predicts a whole-command speed-up of {1 / (share + (1 - share) / parallel):.2f} "
                   f"with the sweep's own speed-up measured above ({parallel:.2f}), and at most {2 / (1 + share):.2f} with a "
                   "perfect one."]
+    lines += ["", "Load average of the machine (1, 5, 15 min) before the kernel rows: {:.2f} {:.2f} {:.2f}; after the last row: "
+              "{:.2f} {:.2f} {:.2f}; {} cores.".format(*load_before, *load_after, os.cpu_count())]
     publish("\n".join(lines), "performance.md", "performance_intro.md", args.write)
     return 0
 

@@ -39,6 +39,7 @@ meanwhile. Beside it, the latency of the chain's longest links, timed as chains 
 own (``chain_sincos``, ``chain_sqrt_div``).
 
     python scripts/profile_kernel.py [--repeat 7] [--write]
+    python scripts/profile_kernel.py --config configs/fig09.toml --num 24 [--repeat 3]   # one config, printed only
 
 ``--write`` regenerates docs/dev/profile.md (the text around the tables is in this script).
 """
@@ -376,9 +377,9 @@ def profile_case(config, num, repeat):
     }
 
 
-def markdown(results, repeat):
+def markdown(results, repeat, names=None):
     lines = [f"Best of {repeat} runs per part, one core, ns per roll.", ""]
-    names = [name for name, _, _ in CASES]
+    names = names or [name for name, _, _ in CASES]
     lines.append("| part | " + " | ".join(names) + " |")
     lines.append("|---|" + "---:|" * len(names))
     lines.append("| whole batch (`roll_batch`) | " + " | ".join(f"{r['batch']:,.0f}" for r in results) + " |")
@@ -575,7 +576,14 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--write", action="store_true", help="write docs/dev/profile.md")
+    parser.add_argument("--config", default=None,
+                        help="profile only this config (fig08's ranges unless it is fig11) and print the breakdown; no --write")
+    parser.add_argument("--num", type=int, default=32, help="cells per axis with --config")
     args = parser.parse_args()
+    if args.config:
+        result = profile_case(args.config, args.num, args.repeat)
+        print(markdown([result], args.repeat, [f"{args.config}, {args.num} x {args.num}"]))
+        return
     results = []
     for name, config, num in CASES:
         print(f"profiling {name} ...", file=sys.stderr)

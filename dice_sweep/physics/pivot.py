@@ -360,7 +360,7 @@ def _com_velocity(chi, omega, up, rho, arc):
 
 
 @numba.njit(cache=True)
-def _rolling_rates(y, mode, rho, arc, inertia, g, mu, c, rates):
+def _rolling_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c):
     """:func:`_contact_rates` of a die on a rounded corner (arc radius ``arc`` > 0).
 
     The arc centre C stays at height r; the COM is at C + rho (cos chi, sin chi) and the
@@ -377,7 +377,6 @@ def _rolling_rates(y, mode, rho, arc, inertia, g, mu, c, rates):
       omega' = -N L / I,  L = rho cos chi + s mu (rho sin chi + r).
     The arc centre moves at xp' = up - r omega (rolling: -r omega); up is P's slip velocity.
     """
-    chi, omega, up = y[0], y[1], y[3]
     sc = math.sin(chi)
     cc = math.cos(chi)
     vx, vy = _com_velocity(chi, omega, up, rho, arc)
@@ -386,27 +385,25 @@ def _rolling_rates(y, mode, rho, arc, inertia, g, mu, c, rates):
     drag_y = -c * speed * vy
     w2 = omega * omega
     arm = rho * sc + arc  # height of the COM above the contact point
-    rates[0] = omega
-    rates[2] = up - arc * omega
     if mode == MODE_STICK:
         domega = (rho * cc * (drag_y - g) - arm * drag_x - arc * rho * cc * w2) / (inertia + rho * rho + arc * arc + 2.0 * arc * rho * sc)
-        rates[1] = domega
-        rates[3] = 0.0
         ddx = -arm * domega - rho * cc * w2
         ddy = rho * (cc * domega - sc * w2)
-        return ddy + g - drag_y, ddx - drag_x
+        return omega, domega, up - arc * omega, 0.0, ddy + g - drag_y, ddx - drag_x
     lever = rho * cc + mode * mu * arm
     normal = (g - drag_y - rho * w2 * sc) / (1.0 + rho * cc * lever / inertia)
     domega = -normal * lever / inertia
     friction = -mode * mu * normal
-    rates[1] = domega
-    rates[3] = friction + drag_x + arm * domega + rho * cc * w2
-    return normal, friction
+    return omega, domega, up - arc * omega, friction + drag_x + arm * domega + rho * cc * w2, normal, friction
 
 
+# Scalars in and out, no arrays: an array argument costs a reference count up and down per
+# call, and the ODE calls this seven times a step (with arrays the rigid law's roll took 8.4
+# instead of 7.1 us of CPU; scripts/bench_kernel.py). Results bit for bit as before.
 @numba.njit(cache=True)
-def _contact_rates(y, mode, rho, arc, inertia, g, mu, c, rates):
-    """Time derivatives of y = (chi, omega, xp, up); returns (N, F_needed) per unit mass.
+def _contact_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c):
+    """Time derivatives (chi', omega', xp', up') of y = (chi, omega, xp, up), then (N, F_needed)
+    per unit mass: six numbers.
 
     For a sticking corner N and F are the forces sticking needs; for a sliding one N is the
     normal force and F the friction applied. ``arc`` > 0: the corner is an arc of that radius,
@@ -414,30 +411,34 @@ def _contact_rates(y, mode, rho, arc, inertia, g, mu, c, rates):
     (:func:`_rolling_rates`).
     """
     if arc != 0.0:
-        return _rolling_rates(y, mode, rho, arc, inertia, g, mu, c, rates)
-    chi, omega, up = y[0], y[1], y[3]
+        return _rolling_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c)
     sc = math.sin(chi)
     cc = math.cos(chi)
     vx, vy = _com_velocity(chi, omega, up, rho, 0.0)
     speed = math.sqrt(vx * vx + vy * vy)
     drag_x = -c * speed * vx
     drag_y = -c * speed * vy
-    rates[0] = omega
-    rates[2] = up
     if mode == MODE_STICK:
         torque = rho * cc * (drag_y - g) - rho * sc * drag_x  # about the corner
         domega = torque / (inertia + rho * rho)
-        rates[1] = domega
-        rates[3] = 0.0
         ddx = -rho * (sc * domega + cc * omega * omega)
         ddy = rho * (cc * domega - sc * omega * omega)
-        return ddy + g - drag_y, ddx - drag_x
+        return omega, domega, up, 0.0, ddy + g - drag_y, ddx - drag_x
     lever = cc + mode * mu * sc
     normal = (g - drag_y - rho * omega * omega * sc) / (1.0 + rho * rho / inertia * cc * lever)
     domega = -rho / inertia * normal * lever
     friction = -mode * mu * normal
-    rates[1] = domega
-    rates[3] = friction + drag_x + rho * (sc * domega + cc * omega * omega)
+    return omega, domega, up, friction + drag_x + rho * (sc * domega + cc * omega * omega), normal, friction
+
+
+@numba.njit(inline="always")
+def _rates_into(k, row, y, mode, rho, arc, inertia, g, mu, c):
+    """k[row] = the rates at y (float64[4]); returns (N, F) as :func:`_contact_rates`."""
+    r0, r1, r2, r3, normal, friction = _contact_rates(y[0], y[1], y[3], mode, rho, arc, inertia, g, mu, c)
+    k[row, 0] = r0
+    k[row, 1] = r1
+    k[row, 2] = r2
+    k[row, 3] = r3
     return normal, friction
 
 
@@ -470,24 +471,24 @@ def _dp5_contact(y, h, mode, rho, arc, inertia, g, mu, c, scale, k, tmp, out):
     """
     for i in range(4):
         tmp[i] = y[i] + h * DP_A21 * k[0, i]
-    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[1])
+    _rates_into(k, 1, tmp, mode, rho, arc, inertia, g, mu, c)
     for i in range(4):
         tmp[i] = y[i] + h * (DP_A31 * k[0, i] + DP_A32 * k[1, i])
-    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[2])
+    _rates_into(k, 2, tmp, mode, rho, arc, inertia, g, mu, c)
     for i in range(4):
         tmp[i] = y[i] + h * (DP_A41 * k[0, i] + DP_A42 * k[1, i] + DP_A43 * k[2, i])
-    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[3])
+    _rates_into(k, 3, tmp, mode, rho, arc, inertia, g, mu, c)
     for i in range(4):
         tmp[i] = y[i] + h * (DP_A51 * k[0, i] + DP_A52 * k[1, i] + DP_A53 * k[2, i] + DP_A54 * k[3, i])
-    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[4])
+    _rates_into(k, 4, tmp, mode, rho, arc, inertia, g, mu, c)
     for i in range(4):
         tmp[i] = y[i] + h * (DP_A61 * k[0, i] + DP_A62 * k[1, i] + DP_A63 * k[2, i] + DP_A64 * k[3, i]
                              + DP_A65 * k[4, i])
-    _contact_rates(tmp, mode, rho, arc, inertia, g, mu, c, k[5])
+    _rates_into(k, 5, tmp, mode, rho, arc, inertia, g, mu, c)
     for i in range(4):
         out[i] = y[i] + h * (DP_B1 * k[0, i] + DP_B3 * k[2, i] + DP_B4 * k[3, i] + DP_B5 * k[4, i]
                              + DP_B6 * k[5, i])
-    _contact_rates(out, mode, rho, arc, inertia, g, mu, c, k[6])
+    _rates_into(k, 6, out, mode, rho, arc, inertia, g, mu, c)
     err = 0.0
     for i in range(4):
         e = h * (DP_E1 * k[0, i] + DP_E3 * k[2, i] + DP_E4 * k[3, i] + DP_E5 * k[4, i] + DP_E6 * k[5, i]
@@ -498,7 +499,7 @@ def _dp5_contact(y, h, mode, rho, arc, inertia, g, mu, c, scale, k, tmp, out):
     return err
 
 
-@numba.njit(cache=True)
+@numba.njit(inline="always")  # in pivot_ode: as a call (three array arguments) it cost reference counts per bisection step
 def _dp5_dense(y, h, k, theta, out):
     """State a fraction ``theta`` into the last Dormand-Prince step from y (quartic, error
     of the order of the step's own)."""
@@ -527,8 +528,8 @@ def _sticking_event(chi, omega, rho, g, mu, normal, friction, drag_accel):
     return 0
 
 
-@numba.njit(cache=True)
-def _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit):
+@numba.njit(inline="always")  # in pivot_ode: as a call (four array arguments) it cost reference counts per test
+def _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit):
     """The event that holds in contact state y (0: none), with ``hit`` for impacts.
 
     Order matters only for simultaneous events: impacts, then lift-off, then friction
@@ -539,7 +540,7 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, ch
         hit[0] = SURF_TABLE
         hit[1] = (corner + 1) % n if chi <= chi_right else (corner - 1) % n
         return 1
-    normal, friction = _contact_rates(y, mode, rho, arc, inertia, g, mu, c, rates)
+    _, _, _, _, normal, friction = _contact_rates(y[0], y[1], y[3], mode, rho, arc, inertia, g, mu, c)
     vx, vy = _com_velocity(chi, omega, y[3], rho, arc)
     height = rho * math.sin(chi) if arc == 0.0 else rho * math.sin(chi) + arc
     energy = 0.5 * (vx * vx + vy * vy) + 0.5 * inertia * omega * omega + g * height
@@ -582,10 +583,10 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, ch
 
 
 @numba.njit(cache=True)
-def _stick_event(y, rho, inertia, g, mu, rates):
+def _stick_event(y, rho, inertia, g, mu):
     """Lift-off (3) or slip (4) of a sticking corner without drag in state y, else 0: the
     test :func:`_contact_event` makes (the same function)."""
-    normal, friction = _contact_rates(y, MODE_STICK, rho, 0.0, inertia, g, mu, 0.0, rates)
+    _, _, _, _, normal, friction = _contact_rates(y[0], y[1], y[3], MODE_STICK, rho, 0.0, inertia, g, mu, 0.0)
     return _sticking_event(y[0], y[1], rho, g, mu, normal, friction, 0.0)
 
 
@@ -608,7 +609,7 @@ def _stick_margin(sin_chi, cos_chi, e, rho, g, alpha, mu):
 
 
 @numba.njit(cache=True)
-def _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_room, probe, rates):
+def _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_room, probe):
     """Move a sticking pivot without drag along its exact path to its next event.
 
     Without drag a sticking pivot keeps its energy, so omega and the contact forces are
@@ -697,7 +698,7 @@ def _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_
         for _ in range(40):
             probe[0] = hi
             probe[1] = direction * math.sqrt(max(omega_squared(hi, e, rho, g, alpha), 0.0))
-            if _stick_event(probe, rho, inertia, g, mu, rates) != 0 or hi == chi_end:
+            if _stick_event(probe, rho, inertia, g, mu) != 0 or hi == chi_end:
                 break
             hi = hi + direction * nudge if direction * (chi_end - hi) > nudge else chi_end
             nudge *= 2.0
@@ -756,7 +757,6 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     trial = np.zeros(4)
     tmp = np.zeros(4)
     k = np.zeros((7, 4))
-    rates = np.zeros(4)
     state = np.zeros(6)
     if abs(slip0) <= SLIP_TOL * math.sqrt(g * rho):
         y[3] = 0.0
@@ -770,10 +770,10 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     max_steps = int(t_left / h_max) + 2 * int(1e6)
     for _ in range(max_steps):
         if event < 0:
-            event = _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+            event = _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit)
         if event == 4:
             # friction transition at this instant: slide (direction against the needed force)
-            normal, friction = _contact_rates(y, MODE_STICK, rho, arc, inertia, g, mu, c, rates)
+            _, _, _, _, normal, friction = _contact_rates(y[0], y[1], y[3], MODE_STICK, rho, arc, inertia, g, mu, c)
             if mode != MODE_STICK and abs(friction) <= mu * normal:
                 mode = MODE_STICK
                 y[3] = 0.0
@@ -794,7 +794,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
             kind = PIVOT_TIMEOUT
             break
         if mode == MODE_STICK and c == 0.0 and not closed_form_last:
-            tau = _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_left - t, trial, rates)
+            tau = _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_left - t, trial)
             if tau >= 0.0:
                 # the next pass finds the event at y; should round-off hide it there, take
                 # an ODE step rather than the same closed form again
@@ -805,7 +805,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
                 continue
         closed_form_last = False
         if not fresh:
-            _contact_rates(y, mode, rho, arc, inertia, g, mu, c, k[0])
+            _rates_into(k, 0, y, mode, rho, arc, inertia, g, mu, c)
             fresh = True
         while True:
             step = min(h, t_left - t)
@@ -817,7 +817,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
         # leaves h as it was
         grow = 5.0 if err < 1e-4 else min(5.0, 0.9 * err ** -0.2)
         h = min(max(h if step < h else 0.0, step * grow), h_max)
-        probe = _contact_event(fpar, n, corner, px, trial, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+        probe = _contact_event(fpar, n, corner, px, trial, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit)
         if _event_holds(probe, stop_at_decision):
             # first sample of the dense output where the event holds, then bisection
             lo = 0.0
@@ -825,7 +825,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
             for j in range(1, EVENT_SAMPLES):
                 theta = j / EVENT_SAMPLES
                 _dp5_dense(y, step, k, theta, tmp)
-                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit)
                 if _event_holds(found, stop_at_decision):
                     hi = theta * step
                     break
@@ -833,7 +833,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
             while hi - lo > t_tol:
                 mid = 0.5 * (lo + hi)
                 _dp5_dense(y, step, k, mid / step, tmp)
-                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                found = _contact_event(fpar, n, corner, px, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit)
                 if _event_holds(found, stop_at_decision):
                     hi = mid
                 else:
@@ -843,7 +843,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
             gap = t_tol
             while True:
                 _dp5_contact(y, hi, mode, rho, arc, inertia, g, mu, c, scale, k, tmp, trial)
-                probe = _contact_event(fpar, n, corner, px, trial, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, rates, hit)
+                probe = _contact_event(fpar, n, corner, px, trial, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit)
                 if _event_holds(probe, stop_at_decision) or hi >= step:
                     break
                 hi = min(hi + gap, step)
