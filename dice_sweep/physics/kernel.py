@@ -487,11 +487,6 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts)
         if surf != SURF_TABLE:
             propped = propped + 1 if came_from_pivot and _leaning_still(s, fpar, surf, px) else 0
-            if propped >= PROPPED_CYCLES:
-                if keep_going:
-                    s[3:] = 0.0
-                nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
-                return _stopped(decided, STATUS_PROPPED, t_decided, t, nrec)
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
@@ -520,6 +515,11 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
                 s[3:] = 0.0  # at rest: what motion is left is below REST_ENERGY
             nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
             return decided, STATUS_DECIDED, t_decided, t, nrec
+        if propped >= PROPPED_CYCLES:  # at rest leaning on a wall (docs/physics.md, "Outcome rule")
+            if keep_going:
+                s[3:] = 0.0
+            nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
+            return _stopped(decided, STATUS_PROPPED, t_decided, t, nrec)
         if pivoting:
             closed_form = smooth_pivot and not below_the_top(fpar, corner, chi, s[5])
             kind_rec = SEG_PIVOT if closed_form else SEG_PIVOT_ODE
