@@ -18,10 +18,13 @@ on a boundary now and its change since the level before (:func:`estimated_rolls`
 estimate reaches the rolls of the full grid, the full grid is rolled instead (every pixel at
 its own centre, as a full sweep) and the sweep says so.
 
-What it can miss: a structure that lies wholly inside a cell of some level whose 8
-neighbours all agree with it at that level, and that touches no boundary seen at a finer
-level (an island smaller than about two cells of that level). docs/chaos.md measures the share of
-pixels that differ from a full sweep.
+At the last level a pixel stays filled only where refinement has shown its region holds one
+side (:func:`unproven_cells`, issue 33): pixels on the map's edge are rolled, and every
+pixel within THIN_BUFFER pixels of a rolled pixel on a boundary, again around each boundary
+that turns up, so that a filled region lies inside a ring of rolled pixels of its own side,
+away from boundaries. What it can still miss: an island of another side wholly inside a filled
+region, more than THIN_BUFFER pixels from every boundary seen, between the coarse cells'
+centres. docs/chaos.md measures the pixels that differ from a full sweep on every paper config.
 """
 
 from __future__ import annotations
