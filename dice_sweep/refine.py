@@ -49,9 +49,9 @@ MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse 
 PRIOR_GROWTH = 0.5  # change of the boundary share per level before two levels are seen: a smooth boundary's halves
 # Cells of the last level (pixels) around a boundary that are rolled whatever their parents
 # said: a chaotic boundary sheds islands and filaments thinner than the coarse spacing next to
-# it. 3 keeps the pixels that differ from a full sweep below 0.01 % on every paper
-# config at 1024^2 (docs/chaos.md, "Adaptive refinement"; on fig12 2 left 0.026 %).
-THIN_BUFFER = 3
+# it. With 3, fig13 at 1024^2 still differed from the full sweep in 144 pixels (0.0137 %),
+# 57 of them 4 pixels from a boundary; docs/chaos.md, "Adaptive refinement", measures 4.
+THIN_BUFFER = 4
 
 
 # --- the quadtree -------------------------------------------------------------------------
