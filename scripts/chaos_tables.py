@@ -260,6 +260,7 @@ def refine_table(runner, args):
         path.unlink(missing_ok=True)
         full_summary = run_sweep(cfg, full_path, workers=runner.workers, progress=False)
         summary = run_refined_sweep(cfg, path, levels, workers=runner.workers, progress=False)
+        runner.computed_seconds += [full_summary.seconds, summary.seconds]  # the footer's count
         full, refined = read_sweep(full_path), read_sweep(path)
         simulated, level, _ = read_refinement_maps(path)
         differ = compare_with_full(refined.outcome, full.outcome)
