@@ -24,6 +24,8 @@ test-explore: $(STAMP)
 test-measured: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests/measured
 
+# 10^5 fuzzed starts for stalls, and 10^5 random dice between walls with every kernel effect
+# that must end decided, propped on a wall, or (event budget) still moving (issue 33)
 test-fuzz: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow tests/physics/test_stalls.py
 

@@ -18,10 +18,13 @@ on a boundary now and its change since the level before (:func:`estimated_rolls`
 estimate reaches the rolls of the full grid, the full grid is rolled instead (every pixel at
 its own centre, as a full sweep) and the sweep says so.
 
-What it can miss: a structure that lies wholly inside a cell of some level whose 8
-neighbours all agree with it at that level, and that touches no boundary seen at a finer
-level (an island smaller than about two cells of that level). docs/chaos.md measures the share of
-pixels that differ from a full sweep.
+At the last level a pixel stays filled only where refinement has shown its region holds one
+side (:func:`unproven_cells`, issue 33): pixels on the map's edge are rolled, and every
+pixel within THIN_BUFFER pixels of a rolled pixel on a boundary, again around each boundary
+that turns up, so that a filled region lies inside a ring of rolled pixels of its own side,
+away from boundaries. What it can still miss: an island of another side wholly inside a filled
+region, more than THIN_BUFFER pixels from every boundary seen, between the coarse cells'
+centres. docs/chaos.md measures the pixels that differ from a full sweep on every paper config.
 """
 
 from __future__ import annotations
@@ -44,6 +47,11 @@ from dice_sweep.sweep import SweepInterrupted, TileGrid, sweep_header
 
 MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse grid
 PRIOR_GROWTH = 0.5  # change of the boundary share per level before two levels are seen: a smooth boundary's halves
+# Cells of the last level (pixels) around a boundary that are rolled whatever their parents
+# said: a chaotic boundary sheds islands and filaments thinner than the coarse spacing next to
+# it. With 3, fig13 at 1024^2 still differed from the full sweep in 144 pixels (0.0137 %),
+# 57 of them 4 pixels from a boundary; docs/chaos.md, "Adaptive refinement", measures 4.
+THIN_BUFFER = 4
 
 
 # --- the quadtree -------------------------------------------------------------------------
@@ -239,16 +247,14 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
         refine_level = np.repeat(np.repeat(refine_level, 2, axis=0), 2, axis=1)
         xs = level_values(grid.x.min, grid.x.max, refine.shape[1])
         ys = level_values(grid.y.min, grid.y.max, refine.shape[0])
-        rolls = 0
-        while refine.any():
-            # a boundary found at this level can run on into a block that was not refined:
-            # follow it there, until every cell on a boundary was rolled at this level
-            rows, cols = np.nonzero(refine)
-            for name, values in _roll_cells(mapper, plane, xs, ys, rows, cols, workers, on_chunk).items():
-                maps[name][rows, cols] = values
-            refine_level[rows, cols] = level
-            rolls += len(rows)
-            refine = boundary_cells(maps["outcome"]) & (refine_level < level)
+        rolls = _roll_and_follow(refine, maps, refine_level, level, mapper, plane, xs, ys, workers, on_chunk)
+        while level == levels:
+            # the last level: until no filled cell lies near a boundary or on the map's edge
+            # (a boundary found there grows the buffer, so look again after each round)
+            unproven = unproven_cells(maps["outcome"], refine_level < level)
+            if not unproven.any():
+                break
+            rolls += _roll_and_follow(unproven, maps, refine_level, level, mapper, plane, xs, ys, workers, on_chunk)
         rolls_per_level.append(rolls)
     rolls = sum(rolls_per_level)
     decision = f"--refine {levels}: refined in {rolls} rolls, {100 * rolls / full:.1f} % of the full grid's {full}"
@@ -257,6 +263,59 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
     if log is not None:
         log(decision)
     return RefinedMaps(maps, refine_level, levels, rolls, tuple(rolls_per_level), decision)
+
+
+def grown(mask, steps: int) -> np.ndarray:
+    """bool map of the cells within ``steps`` cells of a cell of ``mask``, diagonals counting
+    as one step (a square of side 2 steps + 1 around each)."""
+    out = np.asarray(mask, dtype=bool).copy()
+    for _ in range(steps):
+        out[1:, :] |= out[:-1, :].copy()
+        out[:-1, :] |= out[1:, :].copy()
+        out[:, 1:] |= out[:, :-1].copy()
+        out[:, :-1] |= out[:, 1:].copy()
+    return out
+
+
+def unproven_cells(outcome, filled) -> np.ndarray:
+    """bool map of the ``filled`` cells of the last level that refinement must still roll: those
+    within :data:`THIN_BUFFER` cells of a rolled cell on a boundary (where thin features and
+    islands lie), and those on the edge of the map (a region filled up to the edge is not
+    enclosed by rolled cells).
+
+    Parameters
+    ----------
+    outcome : numpy.ndarray
+        (ny, nx) outcomes of the last level, filled cells included.
+    filled : numpy.ndarray
+        bool (ny, nx): cells not rolled at their own centres.
+
+    Returns
+    -------
+    numpy.ndarray
+        bool (ny, nx).
+    """
+    filled = np.asarray(filled, dtype=bool)
+    unproven = grown(boundary_cells(outcome) & ~filled, THIN_BUFFER)
+    unproven[[0, -1], :] = True
+    unproven[:, [0, -1]] = True
+    return unproven & filled
+
+
+def _roll_and_follow(refine, maps, refine_level, level, mapper, plane, xs, ys, workers, on_chunk) -> int:
+    """Roll the cells of ``refine`` at ``level`` into ``maps``, then every cell not yet rolled at
+    this level that lies on a boundary, until none is left; returns the rolls."""
+    rolls = 0
+    while refine.any():
+        # a boundary found at this level can run on into a block that was not refined:
+        # follow it there, until every cell on a boundary was rolled at this level
+        rows, cols = np.nonzero(refine)
+        for name, values in _roll_cells(mapper, plane, xs, ys, rows, cols, workers, on_chunk).items():
+            maps[name][rows, cols] = values
+        refine_level[rows, cols] = level
+        rolls += len(rows)
+        refine = boundary_cells(maps["outcome"]) & (refine_level < level)
+    return rolls
 
 
 def _roll_level(mapper: Mapper, plane: Plane, grid, shape, workers, on_chunk) -> dict[str, np.ndarray]:

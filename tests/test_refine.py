@@ -6,12 +6,15 @@ import pytest
 from dice_sweep.config import load_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.refine import (
+    THIN_BUFFER,
     boundary_cells,
     check_levels,
     compare_with_full,
     estimated_rolls,
+    grown,
     refine_maps,
     run_refined_sweep,
+    unproven_cells,
 )
 from dice_sweep.storage import read_refinement_maps, read_sweep
 from dice_sweep.mapper import Mapper, initial_states, roll_states
@@ -25,9 +28,10 @@ def fig08(num):
 
 @pytest.fixture(scope="module")
 def full_fig08(tmp_path_factory):
-    """A full sweep of fig08 at 128 x 128."""
+    """A full sweep of fig08 at 256 x 256 (at 128 x 128 the buffer around its boundaries,
+    THIN_BUFFER pixels each side, leaves almost nothing to fill)."""
     path = tmp_path_factory.mktemp("full") / "fig08.h5"
-    small_sweep(fig08(128), path)
+    small_sweep(fig08(256), path)
     return read_sweep(path)
 
 
@@ -41,28 +45,73 @@ def test_boundary_cells_flag_both_sides_and_the_diagonals():
 
 
 def test_zero_levels_is_the_full_sweep(full_fig08):
-    refined = refine_maps(fig08(128), 0)
-    assert refined.rolls == 128 * 128 and refined.simulated.all()
+    refined = refine_maps(fig08(256), 0)
+    assert refined.rolls == 256 * 256 and refined.simulated.all()
     for name, values in refined.maps.items():
         np.testing.assert_array_equal(values, full_fig08.maps[name], err_msg=name)
 
 
 def test_pixels_rolled_at_their_centre_equal_the_full_sweep(full_fig08):
-    refined = refine_maps(fig08(128), 3)
+    refined = refine_maps(fig08(256), 3)
     simulated = refined.simulated
     assert 0 < simulated.sum() < simulated.size
     np.testing.assert_array_equal(refined.maps["outcome"][simulated], full_fig08.outcome[simulated])
     np.testing.assert_array_equal(refined.maps["t_decided"][simulated], full_fig08.t_decided[simulated])
-    assert refined.rolls == sum(refined.rolls_per_level) < 128 * 128
-    assert refined.rolls_per_level[0] == 16 * 16
+    assert refined.rolls == sum(refined.rolls_per_level) < 256 * 256
+    assert refined.rolls_per_level[0] == 32 * 32
     # fig08's boundaries are smooth at this scale: refinement follows them all
-    assert compare_with_full(refined.maps["outcome"], full_fig08.outcome) < 0.01
+    assert compare_with_full(refined.maps["outcome"], full_fig08.outcome) == 0.0
 
 
 def test_every_pixel_on_a_boundary_of_the_refined_map_was_rolled():
     refined = refine_maps(fig08(64), 2)
     # boundaries are followed into blocks that were not refined
     assert refined.simulated[boundary_cells(refined.maps["outcome"])].all()
+
+
+def test_grown_is_a_square_of_side_2_steps_plus_1():
+    mask = np.zeros((9, 9), dtype=bool)
+    mask[4, 4] = True
+    expected = np.zeros((9, 9), dtype=bool)
+    expected[2:7, 2:7] = True
+    assert (grown(mask, 2) == expected).all()
+    mask[0, 8] = True  # at the edge: cut, not wrapped
+    assert grown(mask, 1)[:2, 7:].all() and not grown(mask, 1)[8, 0] and grown(mask, 1).sum() == 9 + 4
+
+
+def test_unproven_cells_are_the_filled_ones_near_a_rolled_boundary_or_on_the_edge():
+    outcome = np.zeros((20, 20), dtype=np.int8)
+    outcome[:, 10:] = 1
+    filled = np.ones((20, 20), dtype=bool)
+    filled[:, 9:11] = False  # the boundary columns were rolled
+    unproven = unproven_cells(outcome, filled)
+    near = np.zeros((20, 20), dtype=bool)
+    near[:, 9 - THIN_BUFFER:11 + THIN_BUFFER] = True
+    edge = np.zeros((20, 20), dtype=bool)
+    edge[[0, -1], :] = edge[:, [0, -1]] = True
+    assert (unproven == ((near | edge) & filled)).all()
+    # a boundary between two filled cells is no evidence: only rolled boundary cells count
+    assert not unproven_cells(outcome, np.ones((20, 20), dtype=bool))[1:-1, 1:-1].any()
+
+
+def test_filled_pixels_lie_away_from_every_boundary_and_the_edge(full_fig08):
+    refined = refine_maps(fig08(256), 3)
+    filled = ~refined.simulated
+    assert filled.any()
+    assert not filled[[0, -1], :].any() and not filled[:, [0, -1]].any()
+    assert not (grown(boundary_cells(refined.maps["outcome"]), THIN_BUFFER) & filled).any()
+
+
+def test_fig12_refined_at_256_equals_the_full_sweep(tmp_path):
+    """Issue 33: fig12 at 256 x 256 with --refine 3 differed from the full sweep in 115 pixels,
+    every one filled from a coarser cell; at 1024 x 1024 in 1440. Now at most 0.01 % (1 in this
+    kernel; docs/chaos.md measures every paper config at 1024). At this size refinement rolls
+    more than the full grid (without fallback, as here), so this tests what it fills, not its cost."""
+    cfg = load_config("configs/fig12.toml", ["grid.x.num=256", "grid.y.num=256"])
+    refined = refine_maps(cfg, 3, workers=2, fallback=False)
+    path = tmp_path / "full.h5"
+    small_sweep(cfg, path)
+    assert (refined.maps["outcome"] != read_sweep(path).outcome).sum() <= 1e-4 * 256 * 256
 
 
 def test_levels_the_grid_cannot_be_halved_into_are_refused():
@@ -85,9 +134,9 @@ def test_rolls_do_not_depend_on_the_worker_count():
 
 def test_refined_file_has_the_sweep_layout_plus_the_mask(tmp_path, full_fig08):
     path = tmp_path / "refined.h5"
-    summary = run_refined_sweep(fig08(128), path, 2, workers=1, progress=False)
+    summary = run_refined_sweep(fig08(256), path, 2, workers=1, progress=False)
     stored = read_sweep(path)
-    assert stored.complete and stored.outcome.shape == (128, 128)
+    assert stored.complete and stored.outcome.shape == (256, 256)
     assert stored.config_toml == full_fig08.config_toml
     np.testing.assert_array_equal(stored.x.values, full_fig08.x.values)
     simulated, level, levels = read_refinement_maps(path)
@@ -95,7 +144,7 @@ def test_refined_file_has_the_sweep_layout_plus_the_mask(tmp_path, full_fig08):
     assert (simulated == (level == 2)).all()
     assert read_refinement_maps(full_fig08.path) is None
     with pytest.raises(DiceSweepError, match="exists"):
-        run_refined_sweep(fig08(128), path, 2, workers=1, progress=False)
+        run_refined_sweep(fig08(256), path, 2, workers=1, progress=False)
 
 
 def test_cli_refine(tmp_path):
@@ -142,6 +191,6 @@ def test_refinement_that_cannot_save_rolls_the_full_grid_instead(tmp_path):
 
 def test_refinement_that_saves_says_so():
     lines = []
-    refined = refine_maps(fig08(128), 3, log=lines.append)
+    refined = refine_maps(fig08(256), 3, log=lines.append)
     assert not refined.fell_back and lines == [refined.decision]
-    assert lines[0] == f"--refine 3: refined in {refined.rolls} rolls, {100 * refined.rolls / 128**2:.1f} % of the full grid's 16384"
+    assert lines[0] == f"--refine 3: refined in {refined.rolls} rolls, {100 * refined.rolls / 256**2:.1f} % of the full grid's 65536"

@@ -22,6 +22,7 @@ import numpy as np
 from dice_sweep.physics.flight import (
     NO_CONTACT,
     STALLED,
+    SURF_RIGHT,
     SURF_TABLE,
     advance_flight,
     corner_offset,
@@ -89,6 +90,7 @@ from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exp
     STATUS_DECIDED,
     STATUS_EVENT_BUDGET,
     STATUS_NAMES,
+    STATUS_PROPPED,
     STATUS_STALLED,
     STATUS_T_MAX,
 )
@@ -118,6 +120,10 @@ STICK_HEIGHT = 1e-8  # x R: a corner bouncing lower than this has come to rest (
 # constant tiny amplitude (test_loaded_die_prefers_the_heavy_side ran out of events on it).
 CHATTER_LIMIT = 1000
 REST_ENERGY = 1e-9  # x g rho_max: a decided die this close to lying still is at rest
+# Wall impacts in a row, each ending a pivot that turned the die into that wall with less
+# kinetic energy than REST_ENERGY, after which a die leaning on the wall is at rest: without
+# it a propped die traded pivots and wall impacts at ~1e-9 m/s until the event budget (issue 33).
+PROPPED_CYCLES = 16
 RESTING_GAP = 1e-9  # x rho_max: a corner this close above the table rests on it (a flat die)
 DECIDED_SPEED_MARGIN = 1e-9  # relative: a sliding die counts as decided just below the barrier's speed
 SLIDE_STOP = 1e-15  # x sqrt(g rho_max): a slide this slow has stopped (round-off of the deceleration)
@@ -312,6 +318,16 @@ def _slide(s, fpar, tau):
 
 
 @numba.njit(cache=True)
+def _leaning_still(s, fpar, surf, px):
+    """True if a die that pivoted on a table corner at x = ``px`` into wall ``surf`` and hit it
+    is at rest there: gravity turns it into that wall (its centre of mass between the corner
+    and the wall) and its kinetic energy is below REST_ENERGY g rho_max."""
+    kinetic = specific_energy(s, fpar) - fpar[FP_G] * s[1]
+    into = s[0] > px if surf == SURF_RIGHT else s[0] < px
+    return into and kinetic < REST_ENERGY * fpar[FP_G] * fpar[FP_RHO_MAX]
+
+
+@numba.njit(cache=True)
 def _stopped(decided, status, t_decided, t, nrec):
     """Result of a roll that stopped for ``status``: decided earlier (continuing) or not."""
     if decided >= 0:
@@ -413,6 +429,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     slip = 0.0
     closed_form = True
     chatter = 0
+    propped = 0
     last_was_flight_impact = False
     for _ in range(ipar[IP_MAX_EVENTS]):
         came_from_pivot = pivoting
@@ -468,6 +485,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
         u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts)
+        if surf != SURF_TABLE:
+            propped = propped + 1 if came_from_pivot and _leaning_still(s, fpar, surf, px) else 0
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
@@ -496,6 +515,11 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
                 s[3:] = 0.0  # at rest: what motion is left is below REST_ENERGY
             nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
             return decided, STATUS_DECIDED, t_decided, t, nrec
+        if propped >= PROPPED_CYCLES:  # at rest leaning on a wall (docs/physics.md, "Outcome rule")
+            if keep_going:
+                s[3:] = 0.0
+            nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, energy, EVENT_IMPACT)
+            return _stopped(decided, STATUS_PROPPED, t_decided, t, nrec)
         if pivoting:
             closed_form = smooth_pivot and not below_the_top(fpar, corner, chi, s[5])
             kind_rec = SEG_PIVOT if closed_form else SEG_PIVOT_ODE

@@ -21,7 +21,8 @@ STATUS_T_MAX = 1
 STATUS_EVENT_BUDGET = 2
 STATUS_BALANCED = 3
 STATUS_STALLED = 4
-STATUS_NAMES = ("decided", "t_max", "event_budget", "balanced", "stalled")
+STATUS_PROPPED = 5  # at rest leaning on a wall, no side decided (a "cocked" die: no answer)
+STATUS_NAMES = ("decided", "t_max", "event_budget", "balanced", "stalled", "propped")
 
 # --- event counters: one column each --------------------------------------------------------
 COUNT_COLUMNS = ("impacts", "wall_impacts", "corner_fallbacks", "pivots", "energy_clips", "multi_contacts")
