@@ -70,13 +70,13 @@ def test_readme_command_runs_as_written(command, workdir):
     argv, cwd = _small(argv, workdir)
     env = {**os.environ, "PATH": f"{BIN}{os.pathsep}{os.environ['PATH']}"}
     if argv[:2] == ["dice-sweep", "view"]:
-        return _serves(argv + ["--no-open"], cwd, env)
+        return serves(argv + ["--no-open"], cwd, env)
     done = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, (command, done.stdout[-2000:], done.stderr[-2000:])
     assert "Traceback" not in done.stderr
 
 
-def _serves(argv, cwd, env):
+def serves(argv, cwd, env):
     """A server command (dice-sweep view) runs until it answers, then stops on Ctrl-C."""
     process = subprocess.Popen(argv, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                preexec_fn=ctrl_c_reaches_it)
