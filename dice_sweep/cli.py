@@ -209,7 +209,9 @@ def main():
     """Final-state diagrams of a two-dimensional n-gon die dropped on a table (Smith 2014).
 
     Configs are TOML files in SI units (see configs/). Errors in a config are reported on one
-    line with the file, the key and the allowed range, and exit with code 2.
+    line with the file, the key and the allowed range, and exit with code 2. An option given
+    twice is refused, except --set, --sigma and --range, which combine when each names a
+    different key.
 
     \b
     Example: dice-sweep sweep configs/fig08.toml -o out/fig08.h5 --png out/fig08.png
