@@ -199,8 +199,23 @@ def _dpi(ctx, param, value):
     return check_dpi(value)
 
 
+def _distinct_sets(ctx, param, overrides):
+    """--set given twice for one key, or for a key and a table holding it (grid.x and
+    grid.x.num), is refused: the value would hang on their order. (The library applies
+    overrides in order, later ones winning, as scripts that add their own rely on.)"""
+    given = []
+    for override in overrides:
+        parts = tuple(part.strip() for part in override.partition("=")[0].split("."))
+        for other in given:
+            if other[:len(parts)] == parts or parts[:len(other)] == other:
+                again = "given twice" if other == parts else f"overlaps {'.'.join(other)}, also set"
+                raise DiceSweepError(f"--set: {'.'.join(parts)}: {again} (allowed: each key once, and not a key inside a table also set)")
+        given.append(parts)
+    return overrides
+
+
 def _set_option(command):
-    return click.option("--set", "overrides", multiple=True, metavar="SECTION.KEY=VALUE", help=SET_HELP)(command)
+    return click.option("--set", "overrides", multiple=True, callback=_distinct_sets, metavar="SECTION.KEY=VALUE", help=SET_HELP)(command)
 
 
 @click.group(cls=_Commands, name="dice-sweep", context_settings={"help_option_names": ["-h", "--help"]})

@@ -464,10 +464,7 @@ def _parse_override_value(text):
 
 
 def _apply_overrides(raw, overrides):
-    """Apply ``section.key=value`` strings to the raw TOML dict, in place. A key given twice,
-    or a key and a table holding it (grid.x and grid.x.num), is refused: the result would hang
-    on their order."""
-    given = []
+    """Apply ``section.key=value`` strings to the raw TOML dict, in place."""
     for override in overrides:
         dotted, equals, value_text = override.partition("=")
         dotted = dotted.strip()
@@ -482,11 +479,6 @@ def _apply_overrides(raw, overrides):
                 raise ConfigError("--set", dotted, _unknown_name_message(name, allowed, "key" if depth else "section"))
         if len(parts) < 2:
             raise ConfigError("--set", dotted, "a whole section cannot be set; use section.key=value")
-        for other in given:
-            if other[:len(parts)] == parts or parts[:len(other)] == other:
-                again = "given twice" if other == parts else f"overlaps {_dotted(other)}, also set"
-                raise ConfigError("--set", dotted, f"{again} (allowed: each key once, and not a key inside a table also set)")
-        given.append(parts)
         table = raw
         for name in parts[:-1]:
             table = table.setdefault(name, {})
