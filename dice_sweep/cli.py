@@ -52,13 +52,11 @@ def _usage_error(ctx, error):
     ctx.exit(error.exit_code)
 
 
-REPEATABLE = ("--set", "--sigma", "--range")  # each names its key; the same key twice is refused
-
-
 def _refuse_repeats(command, ctx, args):
     """An option given twice would silently keep its last value: refuse it (click.UsageError,
-    one line, exit 2). Repeatable options (REPEATABLE) combine, each naming a different key
-    (their callbacks refuse a key named twice); a flag given twice says the same thing twice."""
+    one line, exit 2). Repeatable options (multiple=True: --set, --sigma, --range) combine,
+    each naming a different key (their callbacks refuse a key named twice); a flag given twice
+    says the same thing twice."""
     _, _, order = command.make_parser(ctx).parse_args(args=list(args))
     seen = set()
     for param in order:
@@ -66,7 +64,9 @@ def _refuse_repeats(command, ctx, args):
             continue
         if param.name in seen:
             name = max(param.opts, key=len)
-            raise click.BadOptionUsage(name, f"{name} given twice (allowed: once; repeatable options: {', '.join(REPEATABLE)})", ctx)
+            repeatable = [max(p.opts, key=len) for p in command.params if isinstance(p, click.Option) and p.multiple]
+            also = f"; repeatable: {', '.join(repeatable)}" if repeatable else ""
+            raise click.BadOptionUsage(name, f"{name} given twice (allowed: once{also})", ctx)
         seen.add(param.name)
 
 
