@@ -166,3 +166,24 @@ def test_the_readme_says_which_defaults_are_table_is():
     assert "the die and contact law are Table I's" in text
     assert defaults.die == table1.die and defaults.die.circumradius == TABLE1_CIRCUMRADIUS
     assert (defaults.contact.beta_normal, defaults.contact.beta_tangential) == (table1.contact.beta_normal, table1.contact.beta_tangential)
+
+
+def test_the_compile_time_is_the_measured_one():
+    """The README's compile times are those measured by scripts/bench.py: the quiet machine's
+    of dice_sweep.engine.COMPILE_SECONDS, and the last one docs/cold_start.md holds with the
+    load it was made at (the README once said 18 s; a loaded 2-core machine took 28 s)."""
+    from dice_sweep.engine import COMPILE_SECONDS
+
+    text = " ".join(README.read_text().split())
+    quiet = re.search(r"about (\d+) s on this project's 2-core machine when it was quiet \(`COMPILE_SECONDS`", text)
+    assert quiet and int(quiet.group(1)) == round(COMPILE_SECONDS)
+    loaded = re.search(r"docs/cold_start.md\)'s last measurement, at a load average of ([\d.]+) to ([\d.]+) on 2 cores, took "
+                       r"(\d+) s \(the compile-forced `roll`, median of 3\)", text)
+    assert loaded, "the README does not state the last measurement of docs/cold_start.md"
+    measured = (ROOT / "docs" / "cold_start.md").read_text()
+    forced = float(re.search(r"^\| `dice-sweep roll configs/table1.toml` \| [\d.]+ \| ([\d.]+) \|", measured, re.M).group(1))
+    load = re.search(r"^Load average \(1 min, as `uptime` prints it\) on the 2 cores: ([\d.]+) when these runs started, "
+                     r"([\d.]+) when they ended", measured, re.M)
+    assert load, "docs/cold_start.md has no load: rerun python scripts/bench.py --cold --write"
+    assert int(loaded.group(3)) == round(forced) and loaded.groups()[:2] == load.groups()
+    assert "median of 3" in measured
