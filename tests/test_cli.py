@@ -752,3 +752,18 @@ def test_a_compile_of_a_kernel_is_announced_once_on_stderr(tmp_path):
     lines = done.stderr.splitlines()
     assert lines[0] == "compiled elsewhere" and lines[2:] == ["compiled ours", "compiled again"], lines
     assert lines[1].startswith("note: compiling the kernel") and "s on 2 cores" in lines[1]
+
+@pytest.mark.parametrize("at_bound", [["beta_tangential"], []], ids=["at a bound", "inside"])
+def test_diagnose_prints_a_warning_line_per_parameter_at_a_bound(monkeypatch, tmp_path, at_bound):
+    """The line fit prints (tests/app/test_measured.py runs that one on drops), from diagnose's
+    report: one warning line per parameter the report marks at a bound, none otherwise."""
+    import dice_sweep.app.measured
+
+    params = {"beta_normal": {"value": 0.2, "at_bound": False}, "beta_tangential": {"value": -1.0, "at_bound": bool(at_bound)}}
+    report = {"verdict": "unexplained", "effects_added": [], "noise_floor": 3e-4, "params": params,
+              "baseline": {"test_error": 5e-3}, "after": {"test_error": 5e-3, "multiple_of_floor": 16.7, "params": params}}
+    monkeypatch.setattr(dice_sweep.app.measured, "run_diagnose", lambda *args, **kwargs: report)
+    result = run("diagnose", tmp_path / "d.csv", "--config", CONFIG_DIR / "square_drops.toml", "--json", tmp_path / "r.json", "--quiet")
+    assert result.exit_code == 0, result.stderr
+    warned = [line.split()[1] for line in result.stderr.splitlines() if line.startswith("warning: ") and "sits at a bound" in line]
+    assert warned == at_bound and result.stderr.count("\n") == len(at_bound)
