@@ -8,6 +8,7 @@ written) is printed as one line ``error: ...`` on stderr with exit code 2, never
 Every path a command writes is checked before its work (:func:`dice_sweep.outputs.check_outputs`).
 """
 
+import inspect
 import json
 import os
 import sys
@@ -51,8 +52,56 @@ def _usage_error(ctx, error):
     ctx.exit(error.exit_code)
 
 
+def _refuse_repeats(command, ctx, args):
+    """An option given twice would silently keep its last value: refuse it (click.UsageError,
+    one line, exit 2). Repeatable options (multiple=True: --set, --sigma, --range) combine,
+    each naming a different key (their callbacks refuse a key named twice); a flag given twice
+    says the same thing twice."""
+    _, _, order = command.make_parser(ctx).parse_args(args=list(args))
+    seen = set()
+    for param in order:
+        if not isinstance(param, click.Option) or param.multiple or param.is_flag:
+            continue
+        if param.name in seen:
+            name = max(param.opts, key=len)
+            repeatable = [max(p.opts, key=len) for p in command.params if isinstance(p, click.Option) and p.multiple]
+            also = f"; repeatable: {', '.join(repeatable)}" if repeatable else ""
+            raise click.BadOptionUsage(name, f"{name} given twice (allowed: once{also})", ctx)
+        seen.add(param.name)
+
+
+EXAMPLE = "\b\nExample"  # the last paragraph of every command's docstring: its example
+
+
+def _example_last(command):
+    """Move the docstring's closing example paragraph to the epilog, so that --help ends with
+    it (after the options) instead of showing it above them."""
+    head, mark, example = inspect.cleandoc(command.help or "").rpartition(EXAMPLE)
+    if mark:
+        command.help, command.epilog = head.rstrip(), mark + example
+
+
+class _Command(click.Command):
+    """A command whose --help ends with its example and that refuses a non-repeatable option
+    given twice (_refuse_repeats)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        _example_last(self)
+
+    def parse_args(self, ctx, args):
+        _refuse_repeats(self, ctx, args)
+        return super().parse_args(ctx, args)
+
+
 class _Commands(click.Group):
     """A click group that turns user errors into one line on stderr and exit code 2."""
+
+    command_class = _Command
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        _example_last(self)
 
     def parse_args(self, ctx, args):
         try:
@@ -150,8 +199,23 @@ def _dpi(ctx, param, value):
     return check_dpi(value)
 
 
+def _distinct_sets(ctx, param, overrides):
+    """--set given twice for one key, or for a key and a table holding it (grid.x and
+    grid.x.num), is refused: the value would hang on their order. (The library applies
+    overrides in order, later ones winning, as scripts that add their own rely on.)"""
+    given = []
+    for override in overrides:
+        parts = tuple(part.strip() for part in override.partition("=")[0].split("."))
+        for other in given:
+            if other[:len(parts)] == parts or parts[:len(other)] == other:
+                again = "given twice" if other == parts else f"overlaps {'.'.join(other)}, also set"
+                raise DiceSweepError(f"--set: {'.'.join(parts)}: {again} (allowed: each key once, and not a key inside a table also set)")
+        given.append(parts)
+    return overrides
+
+
 def _set_option(command):
-    return click.option("--set", "overrides", multiple=True, metavar="SECTION.KEY=VALUE", help=SET_HELP)(command)
+    return click.option("--set", "overrides", multiple=True, callback=_distinct_sets, metavar="SECTION.KEY=VALUE", help=SET_HELP)(command)
 
 
 @click.group(cls=_Commands, name="dice-sweep", context_settings={"help_option_names": ["-h", "--help"]})
@@ -160,10 +224,12 @@ def main():
     """Final-state diagrams of a two-dimensional n-gon die dropped on a table (Smith 2014).
 
     Configs are TOML files in SI units (see configs/). Errors in a config are reported on one
-    line with the file, the key and the allowed range, and exit with code 2.
+    line with the file, the key and the allowed range, and exit with code 2. An option given
+    twice is refused, except --set, --sigma and --range, which combine when each names a
+    different key.
 
     \b
-    Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png
+    Example: dice-sweep sweep configs/fig08.toml -o out/fig08.h5 --png out/fig08.png
     """
 
 
@@ -217,7 +283,7 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     they arrive; --shard and --resume work the same (docs/scaling.md).
 
     \b
-    Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
+    Example: dice-sweep sweep configs/fig08.toml -o out/fig08.h5 --png out/fig08.png --workers 2
     """
     from pathlib import Path
 
@@ -250,7 +316,9 @@ def merge(parts, out_path):
     """Join the shard files of one sweep (from sweep --shard I/N) into one complete OUT.h5.
 
     \b
-    Example: dice-sweep merge part0.h5 part1.h5 -o out/fig08.h5
+    Example: dice-sweep sweep configs/fig08.toml -o out/part0.h5 --shard 0/2
+             dice-sweep sweep configs/fig08.toml -o out/part1.h5 --shard 1/2
+             dice-sweep merge out/part0.h5 out/part1.h5 -o out/fig08_merged.h5
     """
     from dice_sweep.app.sweep import merge
 
@@ -270,7 +338,7 @@ def plot(h5_path, png_path, box, dpi):
     line on stderr says how many there are.
 
     \b
-    Example: dice-sweep plot out/fig09.h5 -o out/fig09.png --box 40,50,0.2,0.25 --dpi 200
+    Example: dice-sweep plot out/demo.h5 -o out/demo_box.png --box 40,50,0.2,0.25 --dpi 200
     """
     from dice_sweep.app.sweep import draw_sweep_file
 
@@ -290,17 +358,27 @@ def measure(h5_path, json_path, png_dir, box_size):
     """Measure the chaos of a sweep file: outcome fractions, Sb, Sbb and the uncertainty exponent.
 
     \b
-    Example: dice-sweep measure out/fig08.h5 --json out/fig08_chaos.json --png out/fig08_chaos
+    Example: dice-sweep measure out/demo.h5 --json out/demo_chaos.json --png out/demo_chaos
     """
     from dice_sweep.app.chaos import run_measure
 
     click.echo(run_measure(h5_path, box_size=box_size, json_path=json_path, png_dir=png_dir).describe())
 
 
+def _distinct_keys(option, pairs):
+    """(key, value) pairs of a repeatable option as a dict; a key named twice is refused."""
+    chosen = {}
+    for key, value in pairs:
+        if key in chosen:
+            raise DiceSweepError(f"{option}: {key} given twice (allowed: each parameter once)")
+        chosen[key] = value
+    return chosen
+
+
 def _parse_sigmas(ctx, param, texts):
     from dice_sweep.chaos import parse_sigma
 
-    return dict(parse_sigma(text) for text in texts)
+    return _distinct_keys("--sigma", (parse_sigma(text) for text in texts))
 
 
 @main.command()
@@ -318,7 +396,7 @@ def control(h5_path, sigmas, method, samples, points, seed, workers, json_path, 
     """Probability of each side for a thrower whose initial values scatter by --sigma.
 
     \b
-    Example: dice-sweep control out/fig08.h5 --sigma y0=0.002 --sigma omega0=0.5 --png out/control
+    Example: dice-sweep control out/demo.h5 --sigma y0=0.002 --sigma omega0=0.5 --png out/demo_control
     """
     from dice_sweep.app.chaos import run_control
 
@@ -353,9 +431,10 @@ def fit_command(data, config_path, rate, angle, no_check_units, effects_text, js
     score it on the confirmation tracks (RMS pose error, m) against the tracking noise.
 
     \b
-    Example: dice-sweep fit drops.csv --config configs/square_drops.toml --effects corner_impulse --json fit.json
+    Example: dice-sweep simulate-drops configs/square_drops.toml -o out/drops.csv --tracks 40 --seed 1
+             dice-sweep fit out/drops.csv --config configs/square_drops.toml --json out/fit.json
     """
-    from dice_sweep.app.measured import parse_effects, run_fit
+    from dice_sweep.app.measured import at_bound_lines, parse_effects, run_fit
 
     _compile_notice()
     with _checked(no_check_units):
@@ -365,6 +444,8 @@ def fit_command(data, config_path, rate, angle, no_check_units, effects_text, js
     click.echo(f"{result['model']} + {result['effects'] or 'no effects'}: {params}; "
                f"error train {result['train_error'] * 1000:.3f} mm, held-out {result['test_error'] * 1000:.3f} mm "
                f"({result['test_error'] / result['noise_floor']:.1f} x the noise floor {result['noise_floor'] * 1000:.3f} mm)")
+    for line in at_bound_lines(result["params"]):
+        _warn(line)
 
 
 @main.command()
@@ -380,9 +461,10 @@ def diagnose(data, config_path, rate, angle, no_check_units, json_path, md_path,
     repeat; report the verdict (explained / improved / unexplained) against the tracking noise.
 
     \b
-    Example: dice-sweep diagnose drops.csv --config configs/square_drops.toml --json report.json --md report.md
+    Example: dice-sweep simulate-drops configs/square_drops.toml -o out/drops.csv --tracks 40 --seed 1
+             dice-sweep diagnose out/drops.csv --config configs/square_drops.toml --json out/report.json --md out/report.md --png out/report
     """
-    from dice_sweep.app.measured import run_diagnose
+    from dice_sweep.app.measured import at_bound_lines, run_diagnose
 
     _compile_notice()
     with _checked(no_check_units):
@@ -391,6 +473,8 @@ def diagnose(data, config_path, rate, angle, no_check_units, json_path, md_path,
     click.echo(f"{report['verdict']}: effects added {report['effects_added'] or 'none'}; confirmation error "
                f"{report['baseline']['test_error'] * 1000:.3f} mm before, {report['after']['test_error'] * 1000:.3f} mm after "
                f"({report['after']['multiple_of_floor']:.1f} x the noise floor {report['noise_floor'] * 1000:.3f} mm)")
+    for line in at_bound_lines(report["params"]):
+        _warn(line)
 
 
 def _parse_noise(ctx, param, text):
@@ -402,7 +486,7 @@ def _parse_noise(ctx, param, text):
 def _parse_ranges(ctx, param, texts):
     from dice_sweep.app.simulate import parse_range
 
-    return dict(parse_range(text) for text in texts)
+    return _distinct_keys("--range", (parse_range(text) for text in texts))
 
 
 def _number(kind, allowed):
@@ -440,7 +524,7 @@ def simulate_drops_command(config, out_path, tracks, seed, rate, noise, drop_pro
     Not an independent test of the model: the loop fits with the same kernel (docs/simulate_drops.md).
 
     \b
-    Example: dice-sweep simulate-drops configs/square_drops.toml -o drops.csv --tracks 40 --seed 1
+    Example: dice-sweep simulate-drops configs/square_drops.toml -o out/drops.csv --tracks 40 --seed 1
     """
     _fast_kernel_start()
     from dice_sweep.app.simulate import run_simulate_drops
@@ -462,7 +546,8 @@ def calibrate_command(data, config_path, rate, angle, no_check_units, gaps, json
     did by hand (eqs 9 and 10), with their corner-impulse counterparts, spread and outliers.
 
     \b
-    Example: dice-sweep calibrate drops.csv.gz --config configs/square_drops.toml --json cal.json --png cal.png
+    Example: dice-sweep simulate-drops configs/square_drops.toml -o out/drops.csv --tracks 40 --seed 1
+             dice-sweep calibrate out/drops.csv --config configs/square_drops.toml --json out/cal.json --png out/cal.png
     """
     from dice_sweep.app.measured import run_calibrate
 
@@ -501,7 +586,9 @@ def forecast_command(data, config_path, rate, angle, no_check_units, fit_path, f
     the final-state map of their release states.
 
     \b
-    Example: dice-sweep forecast drops.csv --config configs/square_drops.toml --fit fit.json --json forecast.json --png out/forecast
+    Example: dice-sweep simulate-drops configs/square_drops.toml -o out/drops.csv --tracks 40 --seed 1
+             dice-sweep fit out/drops.csv --config configs/square_drops.toml --json out/fit.json
+             dice-sweep forecast out/drops.csv --config configs/square_drops.toml --fit out/fit.json --json out/forecast.json --png out/forecast
     """
     from dice_sweep.app.forecast import run_forecast_command
 
@@ -535,7 +622,7 @@ def view(h5_path, host, port, no_open, workers):
     "serving on http://HOST:PORT/" first; Ctrl-C stops it.
 
     \b
-    Example: dice-sweep view out/fig09.h5 --port 8000 --no-open
+    Example: dice-sweep view out/demo.h5 --no-open
     """
     from dice_sweep.app.view import view as view_command
 

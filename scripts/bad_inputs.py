@@ -118,6 +118,38 @@ for a in [("--tracks","0"),("--tracks","x"),("--tracks","-2"),("--tracks","10000
 add("simulate-drops", f"{C}/square_drops.toml", "-o", str(W/"x.txt"), "--tracks", "3", out=W/"x.txt")
 add("simulate-drops", f"{C}/square_drops.toml", "-o", str(W), "--tracks", "3")
 add("simulate-drops", F["missing"], "-o", str(W/"y.csv"), "--tracks", "3", out=W/"y.csv")
+# --- issue 32, items 4 and 5 (branch truth32): options given twice, the README's sides range ---
+def issue32_repeats_and_readme_cases():
+    """Every option of every command that takes one value, given twice (click kept the last,
+    silently); repeatable options naming one key twice; sides beyond the README's 3 to 127."""
+    from dice_sweep.cli import main
+    import click
+    suffix = {"--output": {"sweep": ".h5", "merge": ".h5", "plot": ".png", "control": ".npz", "simulate-drops": ".csv"},
+              "--json": ".json", "--md": ".md", "--png": ".png", "--gif": ".gif"}
+    for name, command in sorted(main.commands.items()):
+        for param in command.params:
+            if not isinstance(param, click.Option) or param.is_flag or param.multiple:
+                continue
+            opt = max(param.opts, key=len)
+            ext = suffix.get(opt)
+            ext = ext.get(name, ".out") if isinstance(ext, dict) else ext
+            if ext:  # an output given twice: neither file may appear
+                first, second = (W / f"twice_{name}_{opt[2:]}_{k}{ext}" for k in (1, 2))
+                add(name, G if name in ("plot", "measure", "control", "view") else D, opt, str(first), opt, str(second), out=second)
+            else:
+                add(name, G if name in ("plot", "measure", "control", "view", "merge") else D, param.opts[0], "1", opt, "2")
+    add("control", G, "--sigma", "y0=0.002", "--sigma", "y0=0.004")
+    add("control", G, "--sigma", "omega0=0.5", "--sigma", " omega0=0.6")
+    add("roll", f"{C}/table1.toml", "--set", "initial.y0=0.2", "--set", "initial.y0=0.3")
+    add("roll", f"{C}/table1.toml", "--set", "initial.y0=0.2", "--set", "initial . y0=0.3")
+    add("sweep", f"{C}/demo.toml", "-o", str(W/"twice_set.h5"), "--set", "grid.x.num=8", "--set", "grid.x.num=9", out=W/"twice_set.h5")
+    add("sweep", f"{C}/demo.toml", "-o", str(W/"twice_tab.h5"), "--set", "grid.x.num=8", "--set", "grid.x={param='y0', min=0.1, max=0.2, num=4}", out=W/"twice_tab.h5")
+    add("simulate-drops", f"{C}/square_drops.toml", "-o", str(W/"twice_r.csv"), "--tracks", "3", "--range", "y0=0.1:0.2", "--range", "y0=0.2:0.3", out=W/"twice_r.csv")
+    add("fit", D, "--config", f"{C}/square_drops.toml", "--effects", "air_drag,air_drag", "--json", str(W/"twice_e.json"), out=W/"twice_e.json")
+    for sides in ("128", "1000", "2"):  # the README said 3 to 1000; the config takes 3 to 127
+        add("roll", f"{C}/table1.toml", "--set", f"die.sides={sides}")
+        add("sweep", f"{C}/demo.toml", "-o", str(W/f"sides{sides}.h5"), "--set", f"die.sides={sides}", out=W/f"sides{sides}.h5")
+issue32_repeats_and_readme_cases()
 def run(case):
     args, out = case
     env = dict(os.environ, DICE_SWEEP_COMPILE_NOTE="0")

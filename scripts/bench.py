@@ -127,6 +127,7 @@ def cold_start_markdown(tmp: Path) -> str:
          lambda out: CLI + ["sweep", fig09, "-o", str(out), "--quiet", "--set", "grid.x.num=32", "--set", "grid.y.num=32"]),
     ]
     runs = 0
+    load_before = os.getloadavg()[0]  # a loaded machine compiles slower: the table says how loaded
 
     def run(command, engine, cache):
         nonlocal runs
@@ -154,6 +155,8 @@ def cold_start_markdown(tmp: Path) -> str:
     lines += ["", f"A new user's first `roll` then first `sweep` (the demo), one empty cache: **{first:.2f} s** "
               f"in all. Cold = median of {COLD_REPEAT} fresh processes, each with its own empty NUMBA_CACHE_DIR; "
               "warm = best of 3 with the cache filled."]
+    lines += ["", f"Load average (1 min, as `uptime` prints it) on the {os.cpu_count()} cores: {load_before:.2f} when these runs "
+                  f"started, {os.getloadavg()[0]:.2f} when they ended."]
     return "\n".join(lines)
 
 

@@ -10,8 +10,10 @@ import os
 import pytest
 from hypothesis import settings
 
-settings.register_profile("deterministic", derandomize=True, database=None)
-settings.register_profile("explore", derandomize=False, print_blob=True)
+# deadline=None: hypothesis fails an example slower than 200 ms by default, a wall-clock limit
+# that a loaded machine breaks (tests/test_no_wall_clock.py)
+settings.register_profile("deterministic", derandomize=True, database=None, deadline=None)
+settings.register_profile("explore", derandomize=False, print_blob=True, deadline=None)
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
 # The CLI's "compiling the kernel" note would add a line to stderr in whichever test first

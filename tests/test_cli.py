@@ -72,19 +72,107 @@ def calls(monkeypatch):
 # ---- help texts -----------------------------------------------------------------------------
 
 
+COMMANDS = [("", cli.main)] + sorted(cli.main.commands.items())
+
+
+def help_example(name):
+    """The example that ends ``dice-sweep NAME --help``: its command lines, as printed."""
+    result = run(*([name] if name else []), "--help")
+    assert result.exit_code == 0, result.stderr
+    text = result.stdout.rstrip("\n")
+    head, mark, example = text.rpartition("\n  Example: ")
+    assert mark and "Options:" in head, f"{name or 'dice-sweep'} --help does not end with its example after the options"
+    return [line.strip() for line in example.splitlines()]
+
+
 def test_every_command_has_help_ending_with_an_example():
-    commands = [("", cli.main)] + [(name, command) for name, command in cli.main.commands.items()]
     # at least the commands of the issues so far; any added command is checked the same way
-    expected = {"", "roll", "sweep", "merge", "plot", "measure", "control", "calibrate", "fit", "diagnose"}
-    assert expected <= {name for name, _ in commands}
-    for name, command in commands:
-        last_line = command.help.strip().splitlines()[-1].strip()
-        assert last_line.startswith("Example: dice-sweep "), name
-        assert last_line.split()[2] == (name or last_line.split()[2]), name
-        args = [name, "--help"] if name else ["--help"]
-        result = run(*args)
-        assert result.exit_code == 0
-        assert last_line in result.stdout
+    expected = {"", "roll", "sweep", "merge", "plot", "measure", "control", "calibrate", "fit", "diagnose", "forecast", "view"}
+    assert expected <= {name for name, _ in COMMANDS}
+    for name, _ in COMMANDS:
+        lines = help_example(name)
+        assert all(line.startswith("dice-sweep ") for line in lines), (name, lines)
+        if name:  # the last line runs the command itself; earlier lines make its inputs
+            assert lines[-1].split()[1] == name, (name, lines)
+
+
+def test_help_examples_name_only_files_that_make_demo_or_an_earlier_line_makes():
+    """Right after `make demo` (out/demo.h5, out/demo.png) each example runs as written: every
+    input it names is a config, out/demo.h5 or an output of an earlier line, every output is
+    under out/ and none is out/demo.h5 (sweep would refuse it: "exists")."""
+    outputs = {"-o", "--output", "--json", "--md", "--png", "--gif"}
+    for name, _ in COMMANDS:
+        made = {"out/demo.h5"}
+        for line in help_example(name):
+            argv = line.split()
+            written = {argv[i + 1] for i, arg in enumerate(argv[:-1]) if arg in outputs}
+            assert all(path.startswith("out/") and path not in {"out/demo.h5", "out/demo.png"} for path in written), (name, line)
+            for i, arg in enumerate(argv[2:], 2):
+                is_path = arg.startswith(("out/", "configs/")) or arg.endswith((".h5", ".csv", ".gz", ".toml", ".json"))
+                if is_path and argv[i - 1] not in outputs:
+                    assert arg.startswith("configs/") and (ROOT / arg).exists() or arg in made, (name, line, arg)
+            made |= written
+
+
+# the examples of the measured-data commands fit and forecast (minutes): test_readme.py runs
+# their lines in the README's order in the default suite, and -m slow runs each example here
+MEASURED = {"simulate-drops", "calibrate", "fit", "diagnose", "forecast"}
+SMALL_GRID = ["--set", "grid.x.num=16", "--set", "grid.y.num=16"]
+
+
+@pytest.fixture(scope="module")
+def after_make_demo(tmp_path_factory):
+    """A folder as `make demo` leaves the repository: configs/, out/demo.h5 and out/demo.png
+    (the demo at 16 x 16)."""
+    folder = tmp_path_factory.mktemp("after_make_demo")
+    (folder / "configs").symlink_to(CONFIG_DIR)
+    (folder / "out").mkdir()
+    made = run("sweep", DEMO, "-o", folder / "out" / "demo.h5", "--png", folder / "out" / "demo.png", "--quiet", *SMALL_GRID)
+    assert made.exit_code == 0, made.stderr
+    return folder
+
+
+def run_help_example(name, after_make_demo, tmp_path, monkeypatch):
+    """Run NAME's help example line by line, as written, in a copy of the folder `make demo`
+    leaves (sweeps at 16 x 16; a server until it answers)."""
+    import shlex
+    import shutil
+
+    from tests.test_readme import serves
+
+    folder = tmp_path / "repo"
+    shutil.copytree(after_make_demo, folder, symlinks=True)
+    monkeypatch.chdir(folder)
+    for line in help_example(name):
+        argv = shlex.split(line)
+        if argv[1] == "view":
+            bin_dir = Path(sys.executable).parent
+            serves([str(bin_dir / "dice-sweep"), *argv[1:]], folder, {**os.environ, "PATH": f"{bin_dir}{os.pathsep}{os.environ['PATH']}"})
+            continue
+        result = run(*argv[1:], *(SMALL_GRID if argv[1] == "sweep" else []))
+        assert result.exit_code == 0, (line, result.stderr[-2000:])
+    assert sorted(p.name for p in folder.iterdir()) == ["configs", "out"], "an example wrote outside out/"
+
+
+@pytest.mark.parametrize("name", [name for name, _ in COMMANDS if name not in MEASURED])
+def test_help_example_runs_as_written_after_make_demo(name, after_make_demo, tmp_path, monkeypatch):
+    run_help_example(name, after_make_demo, tmp_path, monkeypatch)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(MEASURED))
+def test_measured_help_example_runs_as_written_after_make_demo(name, after_make_demo, tmp_path, monkeypatch):
+    run_help_example(name, after_make_demo, tmp_path, monkeypatch)
+
+
+def test_measured_help_examples_are_readme_lines_in_the_readme_order():
+    """So test_readme.py runs them, in a folder that `make demo` left, in the default suite."""
+    from tests.test_readme import COMMANDS as README_COMMANDS
+
+    for name in MEASURED:
+        lines = help_example(name)
+        places = [README_COMMANDS.index(line) if line in README_COMMANDS else -1 for line in lines]
+        assert -1 not in places and places == sorted(places), (name, lines)
 
 
 def test_help_does_not_import_the_heavy_modules():
@@ -97,6 +185,53 @@ def test_python_dash_m_runs_the_cli():
     result = subprocess.run([sys.executable, "-m", "dice_sweep", "--help"], capture_output=True, text=True)
     assert result.returncode == 0
     assert "Example: dice-sweep" in result.stdout
+
+
+# ---- options given twice (issue 32) ---------------------------------------------------------
+
+
+def value_options():
+    """(command, option) of every option of every command that takes one value: given twice,
+    click would silently keep the last."""
+    return [(name, max(param.opts, key=len)) for name, command in sorted(cli.main.commands.items()) for param in command.params
+            if isinstance(param, click.Option) and not param.is_flag and not param.multiple]
+
+
+def test_there_are_value_options_to_check():
+    options = value_options()
+    assert len(options) > 40 and ("control", "--method") in options and ("fit", "--effects") in options
+
+
+@pytest.mark.parametrize(("name", "option"), value_options(), ids=[" ".join(pair) for pair in value_options()])
+def test_a_value_option_given_twice_is_refused(name, option, calls, tmp_path):
+    assert_user_error(run(name, "ARG", option, "1", option, "2"), f"{option} given twice", "allowed: once")
+    short = [opt for opt in cli.main.commands[name].params if option in opt.opts][0].opts
+    if len(short) > 1:  # -o and --output are one option
+        assert_user_error(run(name, "ARG", short[0], "1", short[1], "2"), f"{option} given twice")
+    assert calls == [] and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("args", "fragments"), [
+    (["control", "{h5}", "--sigma", "y0=0.002", "--sigma", "y0=0.004"], ["--sigma: y0 given twice", "each parameter once"]),
+    (["simulate-drops", "{square}", "-o", "{tmp}/d.csv", "--tracks", "3", "--range", "y0=0.1:0.2", "--range", "y0=0.2:0.3"],
+     ["--range: y0 given twice"]),
+    (["roll", "{table1}", "--set", "initial.y0=0.2", "--set", "initial.y0=0.3"], ["--set: initial.y0: given twice", "each key once"]),
+    (["roll", "{table1}", "--set", "initial.y0=0.2", "--set", " initial . y0 =0.3"], ["given twice"]),
+    (["sweep", "{demo}", "-o", "{tmp}/s.h5", "--set", "grid.x.num=8", "--set", "grid.x={{param='y0', min=0.1, max=0.2, num=4}}"],
+     ["--set: grid.x: overlaps grid.x.num, also set"]),
+    (["fit", "{tmp}/d.csv", "--config", "{square}", "--effects", "air_drag,air_drag"], ["--effects: 'air_drag' given twice"]),
+])
+def test_a_repeatable_option_naming_its_key_twice_is_refused(args, fragments, tmp_path):
+    names = {"h5": tmp_path / "none.h5", "square": CONFIG_DIR / "square_drops.toml", "table1": TABLE1, "demo": DEMO, "tmp": tmp_path}
+    assert_user_error(run(*[arg.format(**names) for arg in args]), *fragments)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_repeatable_options_with_different_keys_combine_and_a_flag_may_repeat(calls):
+    result = run("sweep", DEMO, "-o", "x.h5", "--set", "grid.x.num=4", "--set", "grid.y.num=6", "--quiet", "--quiet")
+    assert result.exit_code == 0, result.stderr
+    (_, (cfg, _), _), = calls
+    assert (cfg.grid.x.num, cfg.grid.y.num) == (4, 6)
 
 
 def test_version():
@@ -617,3 +752,18 @@ def test_a_compile_of_a_kernel_is_announced_once_on_stderr(tmp_path):
     lines = done.stderr.splitlines()
     assert lines[0] == "compiled elsewhere" and lines[2:] == ["compiled ours", "compiled again"], lines
     assert lines[1].startswith("note: compiling the kernel") and "s on 2 cores" in lines[1]
+
+@pytest.mark.parametrize("at_bound", [["beta_tangential"], []], ids=["at a bound", "inside"])
+def test_diagnose_prints_a_warning_line_per_parameter_at_a_bound(monkeypatch, tmp_path, at_bound):
+    """The line fit prints (tests/app/test_measured.py runs that one on drops), from diagnose's
+    report: one warning line per parameter the report marks at a bound, none otherwise."""
+    import dice_sweep.app.measured
+
+    params = {"beta_normal": {"value": 0.2, "at_bound": False}, "beta_tangential": {"value": -1.0, "at_bound": bool(at_bound)}}
+    report = {"verdict": "unexplained", "effects_added": [], "noise_floor": 3e-4, "params": params,
+              "baseline": {"test_error": 5e-3}, "after": {"test_error": 5e-3, "multiple_of_floor": 16.7, "params": params}}
+    monkeypatch.setattr(dice_sweep.app.measured, "run_diagnose", lambda *args, **kwargs: report)
+    result = run("diagnose", tmp_path / "d.csv", "--config", CONFIG_DIR / "square_drops.toml", "--json", tmp_path / "r.json", "--quiet")
+    assert result.exit_code == 0, result.stderr
+    warned = [line.split()[1] for line in result.stderr.splitlines() if line.startswith("warning: ") and "sits at a bound" in line]
+    assert warned == at_bound and result.stderr.count("\n") == len(at_bound)

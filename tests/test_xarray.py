@@ -242,3 +242,18 @@ def test_xarray_example_of_the_docs_runs(partial_path, tmp_path, monkeypatch, ca
     assert lines[0] == "('y0', 'omega0') rad/s m"
     assert re.fullmatch(r"omega0 = (26\.25|33\.75) rad/s: (6|0) of 6 computed", lines[1])  # 30: a tie
     assert lines[2].startswith("computed 24 of 48 - undecided ")
+
+
+def test_the_docs_install_line_installs_an_h5py_backend():
+    """docs/hdf5.md's `pip install ...` line gave, in an environment without dice_sweep, an
+    h5netcdf without h5py (an optional backend of recent releases), so engine="h5netcdf" failed:
+    the line must install h5py, by name or by h5netcdf's [h5py] extra, whenever the installed
+    h5netcdf does not require it unconditionally."""
+    from importlib.metadata import requires
+
+    line = re.search(r"`(pip install [^`]*)`", (ROOT / "docs" / "hdf5.md").read_text()).group(1)
+    words = line.replace("'", "").replace('"', "").split()[2:]
+    assert "xarray" in words and any(word.startswith("h5netcdf") for word in words)
+    unconditional = [r.split(";")[0].strip() for r in requires("h5netcdf") or [] if ";" not in r]
+    if not any(r.startswith("h5py") for r in unconditional):
+        assert "h5netcdf[h5py]" in words or "h5py" in words, line

@@ -7,13 +7,14 @@ from pathlib import Path
 
 from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured.calibrate import CalibrationResult, calibrate
-from dice_sweep.measured.report import jsonable, markdown_report, parse_effects, residual_curves
+from dice_sweep.measured.report import at_bound_lines, jsonable, markdown_report, parse_effects, residual_curves
 from dice_sweep.measured.checks import check_measured
 from dice_sweep.measured.tracks import load_tracks
 from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
 from dice_sweep.plotting import image_formats, plot_calibration, plot_residual_curves
 
-__all__ = ["run_calibrate", "run_fit", "run_diagnose", "parse_effects"]  # fit's --effects parser too
+# fit's --effects parser and the at-a-bound warnings of fit and diagnose too
+__all__ = ["run_calibrate", "run_fit", "run_diagnose", "parse_effects", "at_bound_lines"]
 
 
 def _load(data_path, cfg, rate, angle, gaps="auto"):

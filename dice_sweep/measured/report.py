@@ -15,7 +15,19 @@ def parse_effects(text):
     unknown = [name for name in names if name not in registry.names()]
     if unknown:
         raise DiceSweepError(f"--effects: unknown effect {unknown[0]!r} (allowed: {', '.join(registry.names())})")
+    twice = [name for i, name in enumerate(names) if name in names[:i]]
+    if twice:
+        raise DiceSweepError(f"--effects: {twice[0]!r} given twice (allowed: each effect once)")
     return names
+
+
+def at_bound_lines(params):
+    """One sentence per fitted parameter that ends at a bound of its registry range (``at_bound``
+    of a fit's or diagnose's ``params``): its value there is where the fit was stopped, not an
+    estimate, and its interval is not one either."""
+    return [f"{name} = {p['value']:.4g} sits at a bound of its fit range (dice_sweep/effects.py): that is where the fit was "
+            f"stopped, not an estimate, and its interval is no interval; the model (plus effects) cannot follow these data there"
+            for name, p in params.items() if p.get("at_bound")]
 
 
 def jsonable(value):
@@ -162,6 +174,8 @@ def markdown_report(report):
              + "".join(f" No motion can tell {name} from {', '.join(others)} (the same data, another parameter)."
                        for name, others in report.get("equivalent_effects", {}).items()), "",
              f"Metric: {report['metric']}.", "", f"Selection: {report['selection']}.", ""]
+    lines += [f"**At a bound:** {line}." for line in at_bound_lines(report["after"]["params"])]
+    lines += [""] if lines[-1] else []
     data = report["data"]
     noise = report["noise"]
     spread = report.get("verdict_spread", {})

@@ -196,8 +196,8 @@ def _open_text(path):
     with open(path, "rb") as probe:
         compressed = probe.read(2) == b"\x1f\x8b"
     if compressed:
-        return gzip.open(path, "rt", encoding="utf-8", newline="")
-    return open(path, encoding="utf-8", newline="")
+        return gzip.open(path, "rt", encoding="utf-8-sig", newline="")  # -sig: a BOM, as spreadsheets write
+    return open(path, encoding="utf-8-sig", newline="")
 
 
 def _read_rows(path):

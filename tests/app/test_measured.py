@@ -12,7 +12,7 @@ from dice_sweep.config import parse_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured.calibrate import calibrate
 from dice_sweep.measured.tracks import load_tracks
-from tests.helpers import figure_pixels, invoke, near, png_size, read_png
+from tests.helpers import figure_pixels, invoke, near, png_size, read_png, run_cli
 from tests.measured.cases import DECLARED_RIGID
 from tests.measured.cases import TRUTH as CASE_TRUTH
 from tests.measured.independent import Truth, simulate_drops, write_csv
@@ -60,7 +60,16 @@ def test_fit_and_markdown_with_few_tracks(files, tmp_path):
     result = invoke("diagnose", few, "--config", config, "--quiet", "--json", tmp_path / "f.json", "--md", tmp_path / "f.md",
                     "--png", tmp_path / "png")
     assert result.exit_code == 0, result.output
-    assert "Verdict" in (tmp_path / "f.md").read_text()
+    markdown = (tmp_path / "f.md").read_text()
+    assert "Verdict" in markdown
+    at_bound = [name for name, p in json.loads((tmp_path / "f.json").read_text())["params"].items() if p["at_bound"]]
+    assert [line.split()[3] for line in markdown.splitlines() if line.startswith("**At a bound:**")] == at_bound
+    # the same report with beta_normal at a bound says so on its own line
+    from dice_sweep.measured.report import markdown_report
+
+    report = json.loads((tmp_path / "f.json").read_text())
+    report["after"]["params"]["beta_normal"]["at_bound"] = True
+    assert "**At a bound:** beta_normal = " in markdown_report(report)
     # 7 x 4 inches at 100 dpi: the two fits' curves (baseline in C0, after in C1, drawn last)
     # across the time axis, and the grey line at the first impact across the plot's height
     png = tmp_path / "png" / "residual_error_vs_time.png"
@@ -155,3 +164,53 @@ def test_calibrate_checks_its_outputs_before_reading_the_data(tmp_path):
     cfg = parse_config(CONFIG)
     with pytest.raises(DiceSweepError, match="^--png: .*wrong file extension"):
         run_calibrate(tmp_path / "no_such.csv", cfg, png_path=tmp_path / "c.txt")  # the data is never opened
+
+
+@pytest.fixture(scope="module")
+def paper_drops(tmp_path_factory):
+    """Drops of the paper's law with Table I's coefficients from the independent generator (the
+    README's synthetic drops, made without this project's kernel), at g = 9.81 and at g = 16
+    m/s^2, beyond the gravity effect's fit range of 0.5 to 1.5 times the declared 9.81; and the
+    square with that law declared."""
+    from tests.measured.cases import DECLARED_PAPER
+
+    folder = tmp_path_factory.mktemp("paper")
+    paths = {}
+    for g in (9.81, 16.0):
+        paths[g] = folder / f"drops_g{g:g}.csv"
+        truth = Truth(contact="paper", beta_normal=0.2, beta_tangential=-0.35, g=g)
+        write_csv(paths[g], simulate_drops(truth, 20, 7, rate=500.0, noise=(2e-4, 4e-3)))
+    config = folder / "die.toml"
+    config.write_text(DECLARED_PAPER)
+    return paths, config
+
+
+@pytest.mark.parametrize("g", [9.81, 16.0], ids=["control", "g beyond the range"])
+def test_fit_says_on_stderr_when_a_parameter_sits_at_a_bound(paper_drops, tmp_path, g):
+    """Issue 32: the README's `fit` line ended with beta_tangential at its bound -1 and nothing
+    said so. A warning line names each parameter the JSON marks at a bound: g, when the drops'
+    gravity lies beyond the range the fit may use; none on the control, where the declared law
+    and g are the truth."""
+    paths, config = paper_drops
+    result = run_cli("fit", paths[g], "--config", config, "--effects", "gravity", "--no-check-units", "--json", tmp_path / "fit.json")
+    assert result.exit_code == 0, result.stderr
+    fit = json.loads((tmp_path / "fit.json").read_text())
+    at_bound = sorted(name for name, p in fit["params"].items() if p["at_bound"])
+    warnings = [line for line in result.stderr.splitlines() if "sits at a bound" in line]
+    assert sorted(line.split()[1] for line in warnings) == at_bound
+    assert all(line.startswith("warning: ") for line in warnings)
+    if g > 9.81:
+        assert "g" in at_bound and fit["params"]["g"]["value"] == pytest.approx(1.5 * 9.81, rel=1e-3)
+    else:
+        assert at_bound == [] and result.stderr == ""
+        assert fit["params"]["g"]["value"] == pytest.approx(9.81, rel=0.01)
+        assert fit["params"]["beta_tangential"]["value"] == pytest.approx(-0.35, abs=0.03)
+
+
+def test_the_at_a_bound_lines_name_each_parameter_at_a_bound_and_no_other():
+    from dice_sweep.measured.report import at_bound_lines
+
+    params = {"beta_normal": {"value": 0.2, "at_bound": False}, "beta_tangential": {"value": -1.0, "at_bound": True}}
+    lines = at_bound_lines(params)
+    assert len(lines) == 1 and lines[0].startswith("beta_tangential = -1 sits at a bound")
+    assert at_bound_lines({"beta_normal": {"value": 0.2, "at_bound": False}}) == []

@@ -67,6 +67,23 @@ def test_dropped_frames_are_put_back_as_missing_frames(simulated, tmp_path):
     assert as_is.gap_frames == 0 and as_is.tracks[5].t.size == lossy.times.size - 3
 
 
+@pytest.mark.parametrize("compress", [False, True], ids=["csv", "csv.gz"])
+def test_a_byte_order_mark_and_crlf_lines_read_as_the_plain_file(file_tracks, tmp_path, compress):
+    """Spreadsheet programs write a UTF-8 byte order mark and CRLF line ends: the header's
+    first name was read as '\ufefftraj' and the file refused ("column 'traj': missing")."""
+    plain = load(drops.write_csv(tmp_path / "plain.csv", file_tracks))
+    text = (tmp_path / "plain.csv").read_bytes()
+    assert text.startswith(b"traj,") and b"\r\n" not in text
+    spreadsheet = b"\xef\xbb\xbf" + text.replace(b"\n", b"\r\n")
+    path = tmp_path / ("excel.csv.gz" if compress else "excel.csv")
+    path.write_bytes(gzip.compress(spreadsheet) if compress else spreadsheet)
+    loaded = load(path)
+    assert len(loaded.tracks) == len(plain.tracks) > 0
+    for mine, theirs in zip(loaded.tracks, plain.tracks):
+        assert np.array_equal(mine.t, theirs.t) and np.array_equal(mine.x, theirs.x, equal_nan=True)
+        assert np.array_equal(mine.phi, theirs.phi, equal_nan=True)
+
+
 def test_frame_column_needs_a_rate_and_t_wins_over_it(file_tracks, tmp_path):
     by_frame = drops.write_csv(tmp_path / "frames.csv", file_tracks, columns=("traj", "frame", "x", "y", "phi"))
     with pytest.raises(DiceSweepError, match="frame.*--rate"):
