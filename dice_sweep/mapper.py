@@ -24,6 +24,7 @@ from dice_sweep.engine import ENGINE_NUMBA, ENGINE_PLAIN, sweep_engine
 from dice_sweep.engine import run as engine_run
 from dice_sweep.executor import ordered_map
 from dice_sweep.physics import pack_params, roll_batch
+from dice_sweep.physics.kernel import roll_batch_streams
 from dice_sweep.physics.layout import COUNT_COLUMNS, STATE_COLUMNS
 from dice_sweep.roll import initial_state
 
@@ -72,7 +73,7 @@ class Mapper:
         fpar, ipar = pack_params(cfg)
         return cls(fpar, ipar)
 
-    def roll(self, states, engine: str | None = None) -> Rolls:
+    def roll(self, states, engine: str | None = None, streams=None) -> Rolls:
         """One ``roll_batch`` call on every start, in this process.
 
         Parameters
@@ -81,13 +82,20 @@ class Mapper:
             float64 (N, 6), columns ``STATE_COLUMNS``, SI.
         engine : str, optional
             Overrides the mapper's engine for this call.
+        streams : numpy.ndarray, optional
+            float64 (N, 2): each start's random stream (pixel, draw) for the stochastic impact
+            law (``roll_batch_streams``); None: ``roll_batch``, every roll on stream (0, 0).
 
         Returns
         -------
         Rolls
         """
         rolls = _empty_rolls(len(states))
-        engine_run(roll_batch, engine or self.engine, self.fpar, self.ipar, states, *rolls)
+        if streams is None:
+            engine_run(roll_batch, engine or self.engine, self.fpar, self.ipar, states, *rolls)
+        else:
+            engine_run(roll_batch_streams, engine or self.engine, self.fpar, self.ipar, states,
+                       np.ascontiguousarray(streams, dtype=np.float64), *rolls)
         return rolls
 
     def with_engine_for(self, states, rolls: int, workers: int) -> "Mapper":
@@ -107,17 +115,18 @@ class Mapper:
 
 
 class _ChunkRoll:
-    """Picklable task of the pool: item k is ``mapper.roll`` of chunk k."""
+    """Picklable task of the pool: item k is ``mapper.roll`` of chunk k (with its streams)."""
 
-    def __init__(self, mapper: Mapper, chunks):
+    def __init__(self, mapper: Mapper, chunks, streams=None):
         self.mapper = mapper
         self.chunks = chunks
+        self.streams = streams
 
     def __call__(self, k: int) -> Rolls:
-        return self.mapper.roll(self.chunks[k])
+        return self.mapper.roll(self.chunks[k], streams=None if self.streams is None else self.streams[k])
 
 
-def roll_states(mapper: Mapper, states, workers: int = 1, on_chunk=None) -> Rolls:
+def roll_states(mapper: Mapper, states, workers: int = 1, on_chunk=None, streams=None) -> Rolls:
     """The mapper on any starts, cut into chunks of ``CHUNK_ROLLS`` over ``workers`` processes
     (the one worker pool, :func:`dice_sweep.executor.ordered_map`), on the engine that
     finishes them soonest.
@@ -131,6 +140,8 @@ def roll_states(mapper: Mapper, states, workers: int = 1, on_chunk=None) -> Roll
         Processes; 1 rolls in this one. The result does not depend on it.
     on_chunk : callable, optional
         Called with the number of rolls of each finished chunk.
+    streams : array_like, optional
+        float (N, 2): each start's random stream (pixel, draw), see :meth:`Mapper.roll`.
 
     Returns
     -------
@@ -139,13 +150,19 @@ def roll_states(mapper: Mapper, states, workers: int = 1, on_chunk=None) -> Roll
     """
     states = np.ascontiguousarray(states, dtype=np.float64)
     chunks = [states[start : start + CHUNK_ROLLS] for start in range(0, len(states), CHUNK_ROLLS)]
+    stream_chunks = None
+    if streams is not None:
+        streams = np.ascontiguousarray(streams, dtype=np.float64)
+        stream_chunks = [streams[start : start + CHUNK_ROLLS] for start in range(0, len(states), CHUNK_ROLLS)]
     mapper = mapper.with_engine_for(states, len(states), min(workers, max(1, len(chunks))))
     if not chunks:
-        return mapper.roll(states)
+        return mapper.roll(states, streams=streams)
     if workers > 1 and len(chunks) > 1:
         mapper.warm_up(states[0])  # compile before forking, so that every worker inherits the kernel
+        if streams is not None:
+            mapper.roll(states[:1], streams=streams[:1])
     done = None if on_chunk is None else (lambda k: on_chunk(len(chunks[k])))
-    results = ordered_map(_ChunkRoll(mapper, chunks), len(chunks), workers, on_result=done)
+    results = ordered_map(_ChunkRoll(mapper, chunks, stream_chunks), len(chunks), workers, on_result=done)
     return Rolls(*(np.concatenate(parts) for parts in zip(*results)))
 
 
