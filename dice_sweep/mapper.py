@@ -98,6 +98,27 @@ class Mapper:
                        np.ascontiguousarray(streams, dtype=np.float64), *rolls)
         return rolls
 
+    def roll_draws(self, states, pixels, draws: int, engine: str | None = None) -> Rolls:
+        """``draws`` rolls of each start under the stochastic impact law, start k's draw m on
+        the random stream (``pixels[k]``, m), in this process.
+
+        Parameters
+        ----------
+        states : numpy.ndarray
+            float64 (N, 6), columns ``STATE_COLUMNS``, SI.
+        pixels : array_like of int
+            (N,): each start's stream number, 0 <= pixel < 2^53 (a sweep: its pixel j nx + i).
+        draws : int
+            Rolls per start.
+
+        Returns
+        -------
+        Rolls
+            N * draws rolls, start-major: rows k draws .. (k + 1) draws - 1 are start k's.
+        """
+        return self.roll(np.repeat(np.asarray(states, dtype=np.float64), draws, axis=0), engine,
+                         streams=draw_streams(pixels, draws))
+
     def with_engine_for(self, states, rolls: int, workers: int) -> "Mapper":
         """This mapper on the engine that finishes ``rolls`` rolls like ``states`` (an array,
         or a callable giving one when a probe needs them) soonest
@@ -112,6 +133,13 @@ class Mapper:
         """Compile (or load) the kernel in this process by rolling ``start`` (float64 (6,))
         once (with the plain engine: build its functions), so that forked workers inherit it."""
         self.roll(np.array(start, dtype=np.float64).reshape(1, len(STATE_COLUMNS)))
+
+
+def draw_streams(pixels, draws: int) -> np.ndarray:
+    """float64 (N * draws, 2): the streams (pixel, draw) of ``draws`` draws of each of the
+    ``pixels``, pixel-major (:meth:`Mapper.roll_draws`)."""
+    pixels = np.asarray(pixels, dtype=np.int64)
+    return np.column_stack([np.repeat(pixels, draws), np.tile(np.arange(draws), len(pixels))]).astype(np.float64)
 
 
 class _ChunkRoll:

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from dice_sweep.chaos.measures import UNDECIDED
+from dice_sweep.chaos.measures import UNDECIDED, shannon_entropy
 from dice_sweep.config import GRID_PARAMS, PARAM_UNITS, parse_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import workers_or_default
@@ -104,8 +104,7 @@ class ControlMap:
     @property
     def entropy(self) -> np.ndarray:
         """float (ny, nx): outcome entropy -sum_k p_k ln p_k, nats (ln n for a fair die)."""
-        p = self.probability
-        return -np.sum(np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0), axis=0)
+        return shannon_entropy(self.probability)
 
     def summary(self) -> dict:
         """Plane-averaged numbers, JSON-ready."""
