@@ -153,3 +153,19 @@ def test_refinement_picture_has_the_map_and_the_levels(tmp_path):
     viridis = matplotlib.colormaps["viridis"]
     assert np.mean(near(region, viridis(1.0), tol=0.05)) == pytest.approx(0.25, abs=0.05)  # level 3 of 3: yellow
     assert np.mean(near(region, viridis(0.0), tol=0.05)) == pytest.approx(0.75, abs=0.05)
+
+
+def test_shaded_sides_fade_the_most_likely_colour_to_white_at_equal_shares():
+    colors = plotting.outcome_colors(4)[:, :3]
+    p = np.zeros((5, 1, 4))
+    p[2, 0, 0] = 1.0  # side 2 sure
+    p[:, 0, 1] = 0.2  # five outcomes equally likely: white
+    p[1, 0, 2], p[3, 0, 2] = 0.6, 0.4  # side 1 at 0.6: half way to white
+    p[4, 0, 3] = 1.0  # never a side: black
+    rgb = plotting.shaded_sides(p, 4, computed=np.array([[True, True, True, True]]))
+    np.testing.assert_allclose(rgb[0, 0], colors[2])
+    np.testing.assert_allclose(rgb[0, 1], 1.0)
+    np.testing.assert_allclose(rgb[0, 2], 1.0 - 0.5 * (1.0 - colors[1]))
+    np.testing.assert_allclose(rgb[0, 3], 0.0)
+    grey = plotting.shaded_sides(p, 4, computed=np.array([[False, True, True, True]]))[0, 0]
+    np.testing.assert_allclose(grey, plotting.NOT_COMPUTED_COLOR[:3])
