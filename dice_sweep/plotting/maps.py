@@ -188,6 +188,8 @@ def outcome_title(cfg, complete=True):
         extras.append(f"k = {effects.speed_restitution:g} s/m")
     if cfg.world.g != 9.81:
         extras.append(f"g = {cfg.world.g:g}")
+    if cfg.scatter.on:
+        extras.append(f"impacts scattered: corner {cfg.scatter.corner:.3g}, flat {cfg.scatter.flat:.3g}")
     if extras:
         title += "\n" + ", ".join(extras)
     return title if complete else f"{title} (incomplete)"

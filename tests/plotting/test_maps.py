@@ -121,6 +121,9 @@ def test_title_names_every_effect_that_is_on():
     first, second = plotting.outcome_title(cfg).split("\n")
     assert first.startswith("n = 4, beta_normal = ")
     assert second == "rigid model, mu = 0.5, drag 0.02/m, loaded (0.001, 0) m, k = 0.1 s/m, g = 3.7"
+    scattered = config.parse_config("[scatter]\ncorner = 0.0458\nflat = 0.0938\ndraws = 4\n")
+    assert plotting.outcome_title(scattered).split("\n")[1] == "impacts scattered: corner 0.0458, flat 0.0938"
+    assert "\n" not in plotting.outcome_title(config.parse_config("[scatter]\ndraws = 4\n"))
 
 
 def test_comparison_draws_each_sweep_in_its_own_panel(tmp_path):
