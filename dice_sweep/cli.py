@@ -214,7 +214,9 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     With --refine LEVELS the grid is computed as a quadtree: OUT.h5 has the same maps at the
     full resolution plus /simulated, the pixels rolled at their own centre (docs/hdf5.md).
     With --executor dask the tiles run on a dask cluster and this process writes OUT.h5 as
-    they arrive; --shard and --resume work the same (docs/scaling.md).
+    they arrive; --shard and --resume work the same (docs/scaling.md). With [scatter] draws
+    M > 1 every cell is rolled M times under the stochastic impact law, and OUT.h5 also holds
+    the share of each side (/probability_k, /no_answer; docs/chaos.md, docs/hdf5.md).
 
     \b
     Example: dice-sweep sweep configs/demo.toml -o out/demo.h5 --png out/demo.png --workers 2
@@ -287,7 +289,9 @@ def plot(h5_path, png_path, box, dpi):
 @click.option("--png", "png_dir", metavar="DIR", help="Draw uncertainty.png and box_entropy.png into this folder.")
 @click.option("--box-size", type=int, default=5, show_default=True, callback=_at_least_one, help="Box side in pixels for Sb and Sbb.")
 def measure(h5_path, json_path, png_dir, box_size):
-    """Measure the chaos of a sweep file: outcome fractions, Sb, Sbb and the uncertainty exponent.
+    """Measure the chaos of a sweep file: outcome fractions, Sb, Sbb and the uncertainty exponent;
+    for a probability sweep ([scatter] draws > 1) also the predictable share (one side p >= 0.9)
+    and the basin entropy (mean outcome entropy, nats).
 
     \b
     Example: dice-sweep measure out/fig08.h5 --json out/fig08_chaos.json --png out/fig08_chaos
