@@ -4,7 +4,9 @@ of the repeats and the machine's load (os.getloadavg), which on a shared machine
 than any single number. The kernel is compiled (or loaded) before the first timed run.
 
     python scripts/bench_probability.py [--num 512] [--draws 64] [--workers 2] [--repeat 3]
-        [--spread 0.1] [--config configs/fig08.toml]
+        [--spreads configs/scatter_real.toml] [--config configs/fig08.toml]
+
+The spreads ([scatter] corner and flat) are those of real bounces, read from --spreads.
 """
 
 import argparse
@@ -27,10 +29,11 @@ def main():
     parser.add_argument("--draws", type=int, default=64)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--spread", type=float, default=0.1, help="[scatter] corner and flat (1)")
+    parser.add_argument("--spreads", default="configs/scatter_real.toml", help="a config whose [scatter] corner and flat are used")
     args = parser.parse_args()
+    spreads = load_config(args.spreads).scatter
     cfg = load_config(args.config, [f"grid.x.num={args.num}", f"grid.y.num={args.num}", f"scatter.draws={args.draws}",
-                                    f"scatter.corner={args.spread}", f"scatter.flat={args.spread}"])
+                                    f"scatter.corner={spreads.corner!r}", f"scatter.flat={spreads.flat!r}"])
     SweepJob.from_config(cfg).warm_up()  # compile or load before timing
     seconds = []
     with tempfile.TemporaryDirectory() as folder:
@@ -41,7 +44,7 @@ def main():
             seconds.append(time.perf_counter() - started)
             print(f"run {k}: {seconds[-1]:.1f} s, {summary.rolls_computed / seconds[-1]:,.0f} rolls/s "
                   f"(load average {load_before:.2f} before, {os.getloadavg()[0]:.2f} after)", flush=True)
-    print(f"{Path(args.config).stem} {args.num} x {args.num}, {args.draws} draws, spread {args.spread:g}, "
+    print(f"{Path(args.config).stem} {args.num} x {args.num}, {args.draws} draws, spreads {spreads.corner:.4g}, {spreads.flat:.4g}, "
           f"{args.workers} workers: min {min(seconds):.1f} s, median {statistics.median(seconds):.1f} s, "
           f"max {max(seconds):.1f} s over {len(seconds)} runs (target {TARGET_SECONDS:g} s); "
           f"{os.cpu_count()} cores, load average now {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
