@@ -41,7 +41,7 @@ from dice_sweep.physics.layout import COUNT_COLUMNS, EVENT_IMPACT, REC_EVENT, RE
 from dice_sweep.physics.params import FP_INERTIA, FP_TMAX, IP_CONTINUE, pack_params
 from dice_sweep.physics.scatter import FLAT_TILT
 
-__all__ = ["ImpactResidual", "impact_residuals", "estimate_spreads", "scatter_section", "KINDS"]
+__all__ = ["ImpactResidual", "impact_residuals", "estimate_spreads", "scatter_section", "fitted_scatter", "KINDS"]
 
 BACKOFF = 2e-3  # s (true time) before the fitted contact the kernel starts: clear of the table
 REPLICATES = 16  # noisy refits per impact: half probe its stability, half measure its noise share
@@ -228,3 +228,25 @@ def scatter_section(spreads):
         value = spreads[kind]["value"]
         lines.append(f"{kind} = {value if value is not None else 0.0!r}")
     return "\n".join(lines) + "\n"
+
+
+def fitted_scatter(trackset, cfg, effects, params, *, confirm_fraction, seed=0, log=None):
+    """The spreads of a fit (``effects`` added to the config's, ``params`` their values) on the
+    selection tracks of its split, for the JSON of ``fit`` and ``diagnose``: {corner, flat (as
+    :func:`estimate_spreads`), toml (the ``[scatter]`` section), impacts, unstable, model}."""
+    from dice_sweep.measured.noise import tracking_noise
+
+    select_set, _ = trackset.split(confirm_fraction, seed)
+    table, _, sigma = tracking_noise(trackset, cfg)
+    residuals = impact_residuals(select_set.tracks, cfg, effects, params, sigma=sigma, table=table, seed=seed)
+    spreads = estimate_spreads(residuals, seed=seed)
+    if log:
+        log("scatter of the bounces around the fitted law (selection tracks): " + "; ".join(
+            f"{kind} {s['value']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] ({s['impacts']} impacts)"
+            for kind, s in spreads.items() if s["value"] is not None))
+    return {**spreads, "toml": scatter_section(spreads), "tracks": "selection", "model": MODEL}
+
+
+MODEL = ("each impact's velocity jump: the fitted law's plus a Gaussian of sd sigma u per component of (vx, vy, sqrt(I/M) omega), "
+         "u the touching corner's approach speed; sigma 'flat' for landings within 15 deg of flat, else 'corner' "
+         "(docs/physics.md, 'Scattered impacts'; estimator: docs/measured_method.md)")
