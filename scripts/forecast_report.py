@@ -56,6 +56,29 @@ def the_fit(args):
     return path
 
 
+def with_scatter(args, fit):
+    """The fit JSON with the stochastic impact law's spreads (``scatter``, as fit and diagnose
+    write it since issue 31): the fit itself when it has them, else a copy in out/forecast/
+    with them estimated on its selection tracks (dice_sweep.measured.scatter)."""
+    data = json.loads(Path(fit).read_text())
+    if data.get("scatter"):
+        return Path(fit)
+    from dice_sweep.config import load_config
+    from dice_sweep.measured.forecast import parse_fit
+    from dice_sweep.measured.report import jsonable
+    from dice_sweep.measured.scatter import fitted_scatter
+    from dice_sweep.measured.tracks import load_tracks
+
+    cfg = load_config(CONFIG)
+    source = parse_fit(data, fit, cfg, 0.3, 0)
+    tracks = load_tracks(args.data, sides=cfg.die.sides, circumradius=cfg.die.circumradius, angle="auto")
+    data["scatter"] = fitted_scatter(tracks, cfg, source.effects, source.params, confirm_fraction=source.confirm_fraction,
+                                     seed=source.seed, log=lambda line: print(line, file=sys.stderr))
+    path = OUT / "fit_with_scatter.json"
+    path.write_text(json.dumps(jsonable(data), indent=1))
+    return path
+
+
 def timed_forecast(args, fit):
     """``dice-sweep forecast`` from the release, in a fresh process: (wall seconds, report)."""
     command = [sys.executable, "-m", "dice_sweep", "forecast", args.data, "--config", str(CONFIG), "--angle", "auto", "--fit", str(fit),
@@ -278,7 +301,7 @@ def main():
         print(f"skipped: {args.data} not found (the shared data is not beside this checkout)")
         return 0
     OUT.mkdir(parents=True, exist_ok=True)
-    fit = the_fit(args).resolve()
+    fit = with_scatter(args, the_fit(args)).resolve()
     seconds, report, command = timed_forecast(args, fit)
     (OUT / "bench.json").write_text(json.dumps({"seconds": seconds, "command": command, "fit": str(fit)}))
     for name, target in FIGURES.items():

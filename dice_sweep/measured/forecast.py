@@ -68,6 +68,9 @@ RELIABILITY_BINS = 10
 MIN_BOUNCE_TRACKS = 5  # a forecast point with fewer scored tracks is left out of by_bounce
 REDRAWS = 20  # times a start inside the table is drawn again before the member is dropped
 FLIGHT_TIME_MARGIN = 1e-3  # s past a flight's last frame the fit's kernel runs
+# members per selection track: they only fit the blend's weight (a comparison row), and 2000 of them
+# were 70 % of the forecast's time on the real drops
+SELECTION_MEMBERS = 250
 STREAMS_PER_BOUNCE = 10**6  # random-stream draw indices per forecast point (above any parameter draw count)
 
 
@@ -90,7 +93,7 @@ class FitSource:
     seed: int
     data_path: object  # the data file the fit was made on, if the JSON says
     angle_reading: object
-    # the stochastic impact law's spreads written with the fit ({"corner": s, "flat": s},
+    # the stochastic impact law's spreads written with the fit ({"corner": s, "flat": s, "corner_floor": f, ...},
     # dice_sweep.measured.scatter), or None: the ensemble's impacts follow the fitted law exactly
     scatter: object = None
 
@@ -162,20 +165,22 @@ def _scatter_of(data, path):
     spreads = {}
     for kind in ("corner", "flat"):
         entry = record.get(kind) if isinstance(record, dict) else None
-        value = entry.get("value") if isinstance(entry, dict) else None
-        if value is None and isinstance(entry, dict) and entry.get("impacts") == 0:
-            value = 0.0  # no impact of that kind to estimate it from
-        if not _number(value) or not 0.0 <= value <= MAX_SCATTER:
-            raise _fit_error(path, f"scatter.{kind}.value is not a spread in [0, {MAX_SCATTER:g}]")
-        spreads[kind] = float(value)
+        for key, name in (("value", kind), ("floor", f"{kind}_floor")):
+            value = entry.get(key, 0.0 if key == "floor" else None) if isinstance(entry, dict) else None
+            if value is None and isinstance(entry, dict) and entry.get("value") is None:
+                value = 0.0  # too few impacts of that kind to estimate it from
+            if not _number(value) or not 0.0 <= value <= MAX_SCATTER:
+                raise _fit_error(path, f"scatter.{kind}.{key} is not in [0, {MAX_SCATTER:g}]")
+            spreads[name] = float(value)
     return spreads
 
 
 def scattered(cfg, spreads, seed):
-    """``cfg`` with the stochastic impact law at ``spreads`` ({"corner", "flat"}; None: as it is)."""
+    """``cfg`` with the stochastic impact law at ``spreads`` ([scatter] keys: corner, flat and
+    their floors; None: as it is)."""
     if not spreads:
         return cfg
-    return dataclasses.replace(cfg, scatter=dataclasses.replace(cfg.scatter, corner=spreads["corner"], flat=spreads["flat"], seed=seed))
+    return dataclasses.replace(cfg, scatter=dataclasses.replace(cfg.scatter, **spreads, seed=seed))
 
 
 def _parameter_draws(data, params, names, path):
@@ -483,6 +488,8 @@ def run_forecast(trackset, cfg, source, *, sigma, table=0.0, from_bounce=0, memb
     options = dict(sigma=sigma, observed=observed, members=members, param_draws=param_draws, seed=seed, workers=workers, log=log)
     held_out = forecast_bounces(confirm, cfg, source, bounces, label="held-out tracks", **options)
     select = prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    # the blend's one weight needs far fewer members than a scored forecast
+    options["members"] = min(members, SELECTION_MEMBERS)
     selection = forecast_bounces(select, cfg, source, bounces, label="selection tracks", **options) if recalibrate and select else {}
     if 0 in selection:
         release = selection[0].flights + held_out[0].flights
@@ -856,7 +863,7 @@ def markdown(report):
         f"Fit: {fit['path']} ({fit['kind']}): effects {', '.join(fit['effects']) or 'none'}; "
         + ", ".join(f"{name} = {value:.4g}" for name, value in fit["params"].items()) + f". Parameter uncertainty: {fit['parameter_uncertainty']}."
         + ("" if fit["same_data"] else f" The fit was made on {fit['data_path']}, not on this file: its split still decides which tracks are held out.")
-        + (f" Impacts drawn from the fitted stochastic law: [scatter] corner = {fit['scatter']['corner']:.4g}, flat = {fit['scatter']['flat']:.4g}."
+        + (" Impacts drawn from the fitted stochastic law: [scatter] " + ", ".join(f"{k} = {v:.4g}" for k, v in fit["scatter"].items()) + "."
            if fit.get("scatter") else " Impacts: the fitted law exactly (no [scatter] in the fit)."), "",
         f"Ensemble: {ens['members']} members per track and forecast point ({ens['param_draws']} parameter draws x "
         f"{ens['state_draws_per_param_draw']} state draws), seed {ens['seed']}; tracking noise sigma x {report['noise']['sigma_x'] * 1e3:.4f} mm, "

@@ -16,12 +16,13 @@ bounces"), per clean impact i of the tracks given (calibrate's impacts and clean
 2. the tracking noise's share of |r_i|^2, n_i, is measured by REPLICATES refits with
    Gaussian noise of the tracking sigma added to the frames: E|r'_i - r_i|^2 = n_i in the
    linear regime;
-3. impacts whose noise share alone is a spread above UNSTABLE are left out (counted);
-   sigma^2 = sum_i (|r_i|^2 - n_i) / (3 sum_i u_i^2) over the impacts of a kind (a
-   ratio of sums: E|r_i|^2 = 3 sigma^2 u_i^2 + n_i), sigma = sqrt(max(sigma^2, 0));
-4. its 95 % interval from BOOTSTRAP resamples of the tracks (the independent units), the
-   percentiles of sigma^2 taken to sigma the same way (an interval of sigma^2 reaching below 0
-   holds sigma = 0: no scatter is within the data).
+3. impacts whose noise share alone is a spread above UNSTABLE are left out (counted); over
+   the impacts of a kind, (|r_i|^2 - n_i) / 3 = floor^2 + sigma^2 u_i^2 (E|r_i|^2 = 3 (floor^2
+   + sigma^2 u_i^2) + n_i) is fitted by least squares weighted by the inverse square of the
+   fitted variance; sigma = sqrt(max(sigma^2, 0)), the same for the floor;
+4. their 95 % intervals from BOOTSTRAP resamples of the tracks (the independent units), the
+   percentiles of sigma^2 and floor^2 taken to sigma the same way (an interval reaching below 0
+   holds 0: no scatter of that form is within the data).
 
 What this sigma holds: every way the real impact differs from the fitted law's, systematic
 or random, at the scale of the approach speed. That is what a forecast's ensemble lacks.
@@ -192,32 +193,53 @@ def _sigma(value):
     return math.sqrt(max(value, 0.0))
 
 
-def estimate_spreads(residuals, *, seed=0, draws=BOOTSTRAP):
-    """{kind: {value, ci95, variance, variance_ci95, impacts, tracks}} for ``corner`` and
-    ``flat`` (value None for a kind without impacts): the estimator of the module docstring."""
+def _line(sums):
+    """(a, b) of the weighted least-squares line y = a + b x from the sums (w, wx, wxx, wy, wxy)."""
+    w, wx, wxx, wy, wxy = sums
+    det = w * wxx - wx * wx
+    if not det > 1e-12 * w * wxx:  # one approach speed only (a resample of one track): no line
+        return math.nan, math.nan
+    return (wxx * wy - wx * wxy) / det, (w * wxy - wx * wy) / det
+
+
+def _track_sums(chosen, index, weights, size):
+    """Per track: the five sums of :func:`_line` over its impacts, x = u^2, y = (|r|^2 - n) / 3."""
+    sums = np.zeros((size, 5))
+    for r, w in zip(chosen, weights):
+        x, y = r.approach**2, (r.residual2 - r.noise2) / 3.0
+        sums[index[r.traj]] += w * np.array([1.0, x, x * x, y, x * y])
+    return sums
+
+
+def estimate_spreads(residuals, *, speed, seed=0, draws=BOOTSTRAP):
+    """{kind: {value, ci95, floor, floor_ci95, variance, impacts, tracks, unstable}} for ``corner``
+    and ``flat`` (value None for a kind without impacts): per component, the jump's variance
+    (|r|^2 - n) / 3 = floor^2 + sigma^2 u^2 fitted by least squares weighted by the inverse
+    square of that variance (from a first unweighted pass); ``floor`` in units of ``speed``
+    = sqrt(g R) (m/s). Intervals: bootstrap over tracks with the weights held."""
     rng = np.random.default_rng([seed, 3131])
     out = {}
     for kind in KINDS:
         of_kind = [r for r in residuals if r.kind == kind]
         chosen = [r for r in of_kind if r.probe2 <= 3.0 * UNSTABLE**2 * r.approach**2]
-        if not chosen:
-            out[kind] = {"value": None, "ci95": None, "variance": None, "variance_ci95": None, "impacts": 0, "tracks": 0,
-                         "unstable": len(of_kind)}
-            continue
         trajs = sorted({r.traj for r in chosen})
+        if len(chosen) < 3 or len(trajs) < 2:
+            out[kind] = {"value": None, "ci95": None, "floor": None, "floor_ci95": None, "variance": None, "impacts": len(chosen),
+                         "tracks": len(trajs), "unstable": len(of_kind) - len(chosen)}
+            continue
         index = {t: k for k, t in enumerate(trajs)}
-        top = np.zeros(len(trajs))
-        bottom = np.zeros(len(trajs))
-        for r in chosen:
-            top[index[r.traj]] += r.residual2 - r.noise2
-            bottom[index[r.traj]] += 3.0 * r.approach**2
-        variance = top.sum() / bottom.sum()
-        weights = rng.multinomial(len(trajs), np.full(len(trajs), 1.0 / len(trajs)), size=draws)
-        samples = (weights @ top) / (weights @ bottom)
-        lo, hi = np.percentile(samples, [2.5, 97.5])
-        out[kind] = {"value": _sigma(variance), "ci95": [_sigma(lo), _sigma(hi)], "variance": float(variance),
-                     "variance_ci95": [float(lo), float(hi)], "impacts": len(chosen), "tracks": len(trajs),
-                     "unstable": len(of_kind) - len(chosen)}
+        a, b = _line(_track_sums(chosen, index, np.ones(len(chosen)), len(trajs)).sum(axis=0))
+        scale = max(a, 0.0) + max(b, 0.0) * np.array([r.approach**2 for r in chosen])
+        weights = 1.0 / np.maximum(scale, 1e-12 * speed**2) ** 2
+        sums = _track_sums(chosen, index, weights / weights.mean(), len(trajs))
+        a, b = _line(sums.sum(axis=0))
+        counts = rng.multinomial(len(trajs), np.full(len(trajs), 1.0 / len(trajs)), size=draws)
+        boot = np.array([_line(c @ sums) for c in counts])
+        a_lo, a_hi = np.nanpercentile(boot[:, 0], [2.5, 97.5])
+        b_lo, b_hi = np.nanpercentile(boot[:, 1], [2.5, 97.5])
+        out[kind] = {"value": _sigma(b), "ci95": [_sigma(b_lo), _sigma(b_hi)], "variance": float(b), "variance_ci95": [float(b_lo), float(b_hi)],
+                     "floor": _sigma(a) / speed, "floor_ci95": [_sigma(a_lo) / speed, _sigma(a_hi) / speed],
+                     "floor_variance_m2_s2": float(a), "impacts": len(chosen), "tracks": len(trajs), "unstable": len(of_kind) - len(chosen)}
     return out
 
 
@@ -225,8 +247,9 @@ def scatter_section(spreads):
     """The ``[scatter]`` TOML of estimated spreads (a kind without impacts: 0)."""
     lines = ["[scatter]"]
     for kind in KINDS:
-        value = spreads[kind]["value"]
-        lines.append(f"{kind} = {value if value is not None else 0.0!r}")
+        for key, name in (("value", kind), ("floor", f"{kind}_floor")):
+            value = spreads[kind][key]
+            lines.append(f"{name} = {value if value is not None else 0.0!r}")
     return "\n".join(lines) + "\n"
 
 
@@ -239,14 +262,15 @@ def fitted_scatter(trackset, cfg, effects, params, *, confirm_fraction, seed=0, 
     select_set, _ = trackset.split(confirm_fraction, seed)
     table, _, sigma = tracking_noise(trackset, cfg)
     residuals = impact_residuals(select_set.tracks, cfg, effects, params, sigma=sigma, table=table, seed=seed)
-    spreads = estimate_spreads(residuals, seed=seed)
+    spreads = estimate_spreads(residuals, speed=math.sqrt(float(params.get("g", cfg.world.g)) * cfg.die.circumradius), seed=seed)
     if log:
         log("scatter of the bounces around the fitted law (selection tracks): " + "; ".join(
-            f"{kind} {s['value']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}] ({s['impacts']} impacts)"
-            for kind, s in spreads.items() if s["value"] is not None))
+            f"{kind} {s['value']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}], floor {s['floor']:.3f} [{s['floor_ci95'][0]:.3f}, "
+            f"{s['floor_ci95'][1]:.3f}] sqrt(gR) ({s['impacts']} impacts)" for kind, s in spreads.items() if s["value"] is not None))
     return {**spreads, "toml": scatter_section(spreads), "tracks": "selection", "model": MODEL}
 
 
-MODEL = ("each impact's velocity jump: the fitted law's plus a Gaussian of sd sigma u per component of (vx, vy, sqrt(I/M) omega), "
-         "u the touching corner's approach speed; sigma 'flat' for landings within 15 deg of flat, else 'corner' "
+MODEL = ("each impact's velocity jump: the fitted law's plus a Gaussian of sd min(sqrt((sigma u)^2 + (floor sqrt(g R))^2), u) per "
+         "component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed; sigma and floor 'flat' for landings within "
+         "15 deg of flat, else 'corner' "
          "(docs/physics.md, 'Scattered impacts'; estimator: docs/measured_method.md)")

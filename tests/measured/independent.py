@@ -60,8 +60,9 @@ What is simulated
   is then integrated in time, a spring-dashpot in compression and a spring in restitution at
   each corner in contact, with regularised Coulomb friction (:class:`_Contact`,
   :func:`compliant_constants`), in place of the impact laws. A stochastic impact law
-  (``scatter_corner``, ``scatter_flat``): after each impact a Gaussian velocity jump of sd
-  sigma u per component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed,
+  (``scatter_corner``, ``scatter_flat``, ``scatter_floor``): after each impact a Gaussian
+  velocity jump of sd min(sqrt((sigma u)^2 + (floor sqrt(g R))^2), u) per component of
+  (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed,
   redrawn while it gains energy or leaves the corner approaching (numpy's generator, one
   stream per drop from ``scatter_seed`` and the release state). Measurement effects: a wrong clock, a wrong length scale and an angle
   offset, then Gaussian noise, dropped frames and one-frame glitches.
@@ -151,6 +152,7 @@ class Truth:
     # landing with a side within 15 deg of the table or two corners at once (see _scatter)
     scatter_corner: float = 0.0
     scatter_flat: float = 0.0
+    scatter_floor: float = 0.0  # in sqrt(g R): sd = min(sqrt((scatter u)^2 + (floor sqrt(g R))^2), u), both kinds
     scatter_seed: int = 0
 
 
@@ -1065,12 +1067,14 @@ def _scatter(truth, die, before, after, k, two, rng):
     tilt = max(math.pi / n - off, 0.0)
     sigma = truth.scatter_flat if (two or tilt < SCATTER_FLAT_TILT) else truth.scatter_corner
     u = -float(die.normal_speeds(before)[k])
-    if sigma <= 0.0 or u <= 0.0:
+    floor = truth.scatter_floor * math.sqrt(truth.g * truth.circumradius)
+    if (sigma <= 0.0 and floor <= 0.0) or u <= 0.0:
         return after
+    size = min(math.hypot(sigma * u, floor), u)
     root = math.sqrt(die.inertia)
     limit = _kinetic(die, before[3:])
     for _ in range(SCATTER_TRIES):
-        xi = rng.normal(size=3) * sigma * u
+        xi = rng.normal(size=3) * size
         new = after.copy()
         new[3] += xi[0]
         new[4] += xi[1]
@@ -1139,7 +1143,7 @@ def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
             path.end = "exact_two_contacts"  # no two-contact exact Coulomb impact here: the track ends
             return path
         after, info = impact(truth, before, k, j, share)
-        if truth.scatter_corner > 0.0 or truth.scatter_flat > 0.0:
+        if truth.scatter_corner > 0.0 or truth.scatter_flat > 0.0 or truth.scatter_floor > 0.0:
             after = _scatter(truth, die, before, after, k, info["contacts"] == 2, scatter_rng)
             info["u_n_after"] = float(die.normal_speeds(after)[k])
             if j is not None:
