@@ -514,11 +514,18 @@ def forecast_command(data, config_path, rate, angle, no_check_units, fit_path, f
         report = run_forecast_command(data, _load(config_path, ()), fit_path, from_bounce=from_bounce, members=members, seed=seed, rate=rate,
                                       angle=angle, workers=workers, map_size=map_size, map_axes=map_axes, json_path=json_path,
                                       md_path=md_path, png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
+    if report["warnings"]:
+        _warn("; ".join(report["warnings"]))  # one line, before the result
     s = report["scores"]
-    click.echo(f"from flight {s['from_bounce']}, {s['n_tracks']} held-out tracks: log score {s['log_score']['value']:.3f} "
-               f"[{s['log_score']['ci95'][0]:.3f}, {s['log_score']['ci95'][1]:.3f}] (uniform {s['log_score_uniform']['value']:.3f}), "
-               f"Brier {s['brier']['value']:.3f} [{s['brier']['ci95'][0]:.3f}, {s['brier']['ci95'][1]:.3f}] "
-               f"(uniform {s['brier_uniform']['value']:.3f}); most likely side right {100 * s['share_correct_most_likely']['value']:.0f} %, "
+    from dice_sweep.measured.forecast import headline
+
+    name, first = headline(s)
+    click.echo(f"from flight {s['from_bounce']}, {s['n_tracks']} held-out tracks, {name}: log score {first['log_score']['value']:.3f} "
+               f"[{first['log_score']['ci95'][0]:.3f}, {first['log_score']['ci95'][1]:.3f}] (uniform {s['log_score_uniform']['value']:.3f}), "
+               f"skill {first['log_skill']['value']:.3f} [{first['log_skill']['ci95'][0]:.3f}, {first['log_skill']['ci95'][1]:.3f}] nats, "
+               f"Brier {first['brier']['value']:.3f} [{first['brier']['ci95'][0]:.3f}, {first['brier']['ci95'][1]:.3f}] "
+               f"(uniform {s['brier_uniform']['value']:.3f}), calibration z log {first['calibration']['log_score_z']:.1f}, "
+               f"Brier {first['calibration']['brier_z']:.1f}; most likely side right {100 * s['share_correct_most_likely']['value']:.0f} %, "
                f"deterministic {100 * s['share_correct_deterministic']['value']:.0f} %")
 
 

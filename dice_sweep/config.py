@@ -16,8 +16,9 @@ beta_tangential = -0.35, beta_normal = 0.2, dt = 0.001 s, R = 1.9/sqrt(2) cm):
     [tracking]   # angle_offset = 0 (rad), time_scale = 1, length_scale = 1: how the tracker saw
                  # the die (measured drops only; the kernel ignores it)
     [world]      # g = 9.81 (m/s^2): the one source of g
-    [scatter]    # corner = 0, flat = 0 (1): relative spread of each impact's velocity jump
-                 # (0: the deterministic law), draws = 1 per start, seed = 0 (docs/physics.md)
+    [scatter]    # corner = 0, flat = 0 (1): relative spread of each impact's velocity jump,
+                 # corner_floor = 0, flat_floor = 0 (sqrt(g R)): its floor (all 0: the
+                 # deterministic law), draws = 1 per start, seed = 0 (docs/physics.md)
 
 The keys of [effects] and [tracking] come from the effect registry (dice_sweep/effects.py).
     [integrator] # method = "event" | "fixed_step", dt = 0.001 (s), t_max = 30 (s), max_events
@@ -176,17 +177,21 @@ class Scatter:
     """The stochastic impact law (docs/physics.md, "Scattered impacts"): ``corner`` and
     ``flat`` (1, in [0, 1]) are the standard deviation of each impact's velocity jump over the
     touching corner's approach speed, for landings on a corner and near flat (within 15 deg);
-    0 is the deterministic law. ``draws`` (1..4096): rolls per start of a sweep; ``seed``: the
+    ``corner_floor`` and ``flat_floor`` (in sqrt(g R), in [0, 1]) the sd at a vanishing
+    approach: sd = min(sqrt((spread u)^2 + (floor sqrt(g R))^2), u); all 0 is the deterministic
+    law. ``draws`` (1..4096): rolls per start of a sweep; ``seed``: the
     random streams' seed."""
 
     corner: float = 0.0
     flat: float = 0.0
+    corner_floor: float = 0.0
+    flat_floor: float = 0.0
     draws: int = 1
     seed: int = 0
 
     @property
     def on(self):
-        return self.corner > 0.0 or self.flat > 0.0
+        return max(self.corner, self.flat, self.corner_floor, self.flat_floor) > 0.0
 
 
 @dataclass(frozen=True)
@@ -323,6 +328,8 @@ _SECTION_SPECS = {
     "scatter": {
         "corner": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="(of the approach speed)"),
         "flat": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="(of the approach speed)"),
+        "corner_floor": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="sqrt(g R)"),
+        "flat_floor": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="sqrt(g R)"),
         "draws": _Spec(int, 1, low=1, high=MAX_DRAWS),
         "seed": _Spec(int, 0, low=0, high=MAX_SEED),
     },

@@ -164,6 +164,7 @@ BAD_CONFIGS = [
     ("[grid]\nz = 3", "grid.z", "allowed keys: x, y"),
     ("[scatter]\ncorner = 1.5", "scatter.corner", "allowed range [0, 1]"),
     ("[scatter]\nflat = -0.1", "scatter.flat", "allowed range [0, 1]"),
+    ("[scatter]\ncorner_floor = 2", "scatter.corner_floor", "allowed range [0, 1] sqrt(g R)"),
     ("[scatter]\ndraws = 0", "scatter.draws", "allowed range [1, 4096]"),
     ("[scatter]\nseed = -1", "scatter.seed", "allowed range [0, 9.0072e+15]"),
     ("[scatter]\nspread = 0.1", "scatter.spread", "unknown key 'spread'"),

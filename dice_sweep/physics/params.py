@@ -47,7 +47,9 @@ FP_SCATTER_FLAT = 15  # 1: the same for landings near flat and two-contact impac
 FP_STREAM_SEED = 16
 FP_STREAM_PIXEL = 17
 FP_STREAM_DRAW = 18
-N_FP_BASE = 19
+FP_SCATTER_CORNER_FLOOR = 19  # m/s: the jump's sd at vanishing approach speed, corner landings
+FP_SCATTER_FLAT_FLOOR = 20  # m/s: the same for flat landings
+N_FP_BASE = 21
 
 # ipar indices
 IP_N = 0  # number of sides
@@ -173,6 +175,9 @@ def pack_params(cfg):
     fpar[FP_SCATTER_CORNER] = cfg.scatter.corner
     fpar[FP_SCATTER_FLAT] = cfg.scatter.flat
     fpar[FP_STREAM_SEED] = cfg.scatter.seed
+    speed = math.sqrt(cfg.world.g * cfg.die.circumradius)  # [scatter] floors are in sqrt(g R): each die's own speed
+    fpar[FP_SCATTER_CORNER_FLOOR] = cfg.scatter.corner_floor * speed
+    fpar[FP_SCATTER_FLAT_FLOOR] = cfg.scatter.flat_floor * speed
     _pack_derived(fpar, n, effect_registry.get_key(cfg, INERTIA_KEY))
     ipar[IP_N] = n
     ipar[IP_MODEL] = MODELS[cfg.contact.model]

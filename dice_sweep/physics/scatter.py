@@ -2,10 +2,11 @@
 
 After the deterministic impact (one corner, or two at once), the centre of mass's velocity
 gets a random jump, Gaussian and isotropic in the kinetic-energy metric (vx, vy,
-sqrt(I/M) omega), of standard deviation sigma u per component: u (m/s) the touching corner's
-approach speed before the impact, sigma the relative spread of ``[scatter]``, ``flat`` for a
-landing with a side within FLAT_TILT of the surface (or a two-contact impact), else
-``corner``. A jump that would leave the die with more kinetic energy than it brought in, or
+sqrt(I/M) omega), of standard deviation min(sqrt((sigma u)^2 + f^2), u) per component: u
+(m/s) the touching corner's approach speed before the impact, sigma the relative spread and f
+the floor (m/s; the config's floor times sqrt(g R)) of ``[scatter]``, ``flat`` and
+``flat_floor`` for a landing with a side within FLAT_TILT of the surface (or a two-contact
+impact), else ``corner`` and ``corner_floor``. A jump that would leave the die with more kinetic energy than it brought in, or
 the touching corner still approaching the surface, is drawn again (at most TRIES times; then
 the deterministic outcome stands). docs/physics.md, "Scattered impacts", states the model;
 dice_sweep/measured/scatter.py estimates sigma from tracked drops.
@@ -16,7 +17,7 @@ function of those six integers. A roll's answer therefore depends on its own str
 on the batch, tile, shard or worker it is rolled in. The stream sits in fpar
 (FP_STREAM_SEED, FP_STREAM_PIXEL, FP_STREAM_DRAW, integers below 2^53).
 
-With both spreads 0 (the null value) nothing here runs, and a roll is bit for bit the
+With the spreads and floors 0 (the null value) nothing here runs, and a roll is bit for bit the
 deterministic one.
 """
 
@@ -28,7 +29,9 @@ import numpy as np
 from dice_sweep.physics.params import (
     FP_INERTIA,
     FP_SCATTER_CORNER,
+    FP_SCATTER_CORNER_FLOOR,
     FP_SCATTER_FLAT,
+    FP_SCATTER_FLAT_FLOOR,
     FP_STREAM_DRAW,
     FP_STREAM_PIXEL,
     FP_STREAM_SEED,
@@ -91,8 +94,8 @@ def landing_tilt(phi, n, nx, ny, corner):
 
 @numba.njit(cache=True)
 def scatter_on(fpar):
-    """True when the stochastic law is on (either spread above 0)."""
-    return fpar[FP_SCATTER_CORNER] > 0.0 or fpar[FP_SCATTER_FLAT] > 0.0
+    """True when the stochastic law is on (a spread or a floor above 0)."""
+    return fpar[FP_SCATTER_CORNER] > 0.0 or fpar[FP_SCATTER_FLAT] > 0.0 or fpar[FP_SCATTER_CORNER_FLOOR] > 0.0 or fpar[FP_SCATTER_FLAT_FLOOR] > 0.0
 
 
 @numba.njit(cache=True)
@@ -104,13 +107,15 @@ def scatter_impact(s, fpar, ipar, rx, ry, nx, ny, corner, vx0, vy0, w0, approach
     none was admissible (s unchanged)."""
     flat = two_contacts or landing_tilt(s[2], ipar[IP_N], nx, ny, corner) < FLAT_TILT
     sigma = fpar[FP_SCATTER_FLAT] if flat else fpar[FP_SCATTER_CORNER]
-    if sigma <= 0.0 or approach <= 0.0:
+    floor = fpar[FP_SCATTER_FLAT_FLOOR] if flat else fpar[FP_SCATTER_CORNER_FLOOR]
+    if (sigma <= 0.0 and floor <= 0.0) or approach <= 0.0:
         return -1
     inertia = fpar[FP_INERTIA]
     lever = math.sqrt(inertia)
     energy_in = vx0 * vx0 + vy0 * vy0 + inertia * w0 * w0
     key = stream_key(fpar[FP_STREAM_SEED], fpar[FP_STREAM_PIXEL], fpar[FP_STREAM_DRAW])
-    size = sigma * approach
+    # never above the approach itself: a floor on a corner barely touching would only be redrawn
+    size = min(math.sqrt((sigma * approach) ** 2 + floor * floor), approach)
     base = np.uint64(index) * np.uint64(VARIATES)
     for attempt in range(TRIES):
         c = base + np.uint64(6 * attempt)

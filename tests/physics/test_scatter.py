@@ -10,7 +10,7 @@ from dice_sweep.config import parse_config
 from dice_sweep.engine import ENGINE_PLAIN
 from dice_sweep.mapper import Mapper, roll_states
 from dice_sweep.measured.impacts import landing_tilt as measured_tilt
-from dice_sweep.physics.params import FP_INERTIA, FP_SCATTER_CORNER, FP_SCATTER_FLAT
+from dice_sweep.physics.params import FP_INERTIA, FP_SCATTER_CORNER, FP_SCATTER_CORNER_FLOOR, FP_SCATTER_FLAT, FP_SCATTER_FLAT_FLOOR, pack_params
 from dice_sweep.physics.scatter import TRIES, landing_tilt, normal, scatter_impact, stream_key, uniform
 from tests.physics.conftest import make_params
 
@@ -41,11 +41,13 @@ def test_landing_tilt_on_the_table_is_calibrates():
         assert landing_tilt(phi, n, 0.0, 1.0, lowest) == pytest.approx(measured_tilt(n, phi), abs=1e-12)
 
 
-def _jumps(sigma, count, vy=-2.0, w=3.0):
+def _jumps(sigma, count, vy=-2.0, w=3.0, floor=0.0):
     """Velocity jumps of ``count`` impacts of corner 0 (tilted 30 deg: a corner landing)."""
     fpar, ipar = make_params(sides=4, radius=0.02)
     fpar[FP_SCATTER_CORNER] = sigma
+    fpar[FP_SCATTER_CORNER_FLOOR] = floor
     fpar[FP_SCATTER_FLAT] = 9.0  # must not be used
+    fpar[FP_SCATTER_FLAT_FLOOR] = 9.0
     out = []
     phi = -math.pi / 2 + math.radians(15.0)  # corner 0 down, its sides 30 and 60 deg from the table
     rx, ry = 0.02 * math.cos(phi), 0.02 * math.sin(phi)
@@ -70,6 +72,20 @@ def test_jump_size_and_admissibility():
     assert np.all(new[:, 1] + new[:, 2] * rx >= 0.0)  # the corner leaves the table
     energy_in = before[0] ** 2 + before[1] ** 2 + inertia * before[2] ** 2
     assert np.all(new[:, 0] ** 2 + new[:, 1] ** 2 + inertia * new[:, 2] ** 2 <= energy_in)
+
+
+def test_the_floor_adds_in_quadrature():
+    jumps, approach, inertia, *_ = _jumps(0.03, 4000, floor=0.05)
+    d = jumps[jumps[:, 0] >= 0, 1:]
+    d[:, 2] *= math.sqrt(inertia)
+    assert np.std(d, axis=0) == pytest.approx(math.hypot(0.03 * approach, 0.05) * np.ones(3), rel=0.06)
+
+
+def test_config_floors_are_in_each_dies_own_speed():
+    cfg = parse_config("[die]\ncircumradius = 0.04\n[scatter]\ncorner_floor = 0.1\nflat_floor = 0.2\n")
+    fpar, _ = pack_params(cfg)
+    speed = math.sqrt(9.81 * 0.04)
+    assert fpar[FP_SCATTER_CORNER_FLOOR] == pytest.approx(0.1 * speed) and fpar[FP_SCATTER_FLAT_FLOOR] == pytest.approx(0.2 * speed)
 
 
 def test_inadmissible_jumps_are_redrawn_then_dropped():
