@@ -6,7 +6,7 @@ than any single number. The kernel is compiled (or loaded) before the first time
     python scripts/bench_probability.py [--num 512] [--draws 64] [--workers 2] [--repeat 3]
         [--spreads configs/scatter_real.toml] [--config configs/fig08.toml]
 
-The spreads ([scatter] corner and flat) are those of real bounces, read from --spreads.
+The law ([scatter] corner, corner_floor, flat, flat_floor) is that of real bounces, read from --spreads.
 """
 
 import argparse
@@ -19,6 +19,7 @@ from pathlib import Path
 from dice_sweep.config import load_config
 from dice_sweep.sweep import SweepJob, run_sweep
 
+LAW_KEYS = ("corner", "corner_floor", "flat", "flat_floor")  # what the --spreads file gives
 TARGET_SECONDS = 60.0  # issue 31 item 5, at 512 x 512, 64 draws, 2 cores
 
 
@@ -29,11 +30,11 @@ def main():
     parser.add_argument("--draws", type=int, default=64)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--spreads", default="configs/scatter_real.toml", help="a config whose [scatter] corner and flat are used")
+    parser.add_argument("--spreads", default="configs/scatter_real.toml", help="a config whose [scatter] law is used")
     args = parser.parse_args()
     spreads = load_config(args.spreads).scatter
-    cfg = load_config(args.config, [f"grid.x.num={args.num}", f"grid.y.num={args.num}", f"scatter.draws={args.draws}",
-                                    f"scatter.corner={spreads.corner!r}", f"scatter.flat={spreads.flat!r}"])
+    law = [f"scatter.{key}={getattr(spreads, key)!r}" for key in LAW_KEYS]
+    cfg = load_config(args.config, [f"grid.x.num={args.num}", f"grid.y.num={args.num}", f"scatter.draws={args.draws}", *law])
     SweepJob.from_config(cfg).warm_up()  # compile or load before timing
     seconds = []
     with tempfile.TemporaryDirectory() as folder:
@@ -44,7 +45,8 @@ def main():
             seconds.append(time.perf_counter() - started)
             print(f"run {k}: {seconds[-1]:.1f} s, {summary.rolls_computed / seconds[-1]:,.0f} rolls/s "
                   f"(load average {load_before:.2f} before, {os.getloadavg()[0]:.2f} after)", flush=True)
-    print(f"{Path(args.config).stem} {args.num} x {args.num}, {args.draws} draws, spreads {spreads.corner:.4g}, {spreads.flat:.4g}, "
+    print(f"{Path(args.config).stem} {args.num} x {args.num}, {args.draws} draws, "
+          f"{', '.join(f'{key} {getattr(spreads, key):.4g}' for key in LAW_KEYS)}, "
           f"{args.workers} workers: min {min(seconds):.1f} s, median {statistics.median(seconds):.1f} s, "
           f"max {max(seconds):.1f} s over {len(seconds)} runs (target {TARGET_SECONDS:g} s); "
           f"{os.cpu_count()} cores, load average now {' '.join(f'{v:.2f}' for v in os.getloadavg())}")

@@ -8,8 +8,9 @@ Public API only. ``make chaos`` runs them all.
 
     python scripts/chaos_tables.py validation|sides|walls|time_step|contact|refine|control|scatter [--workers N] [--num N]
 
-``scatter`` reads the spreads of real bounces from configs/scatter_real.toml ([scatter] corner,
-flat, draws, seed) and sweeps Figs 8, 9 and 11 with them (probability maps, docs/chaos.md).
+``scatter`` reads the law of real bounces from configs/scatter_real.toml ([scatter] corner,
+corner_floor, flat, flat_floor, draws, seed) and sweeps Figs 8, 9 and 11 with it (probability
+maps, docs/chaos.md).
 """
 
 import argparse
@@ -316,8 +317,11 @@ def control_table(runner, args):
     write_table("control", markdown + footer(f"python scripts/chaos_tables.py control --num {runner.num}", started, runner=runner))
 
 
+SCATTER_SCALED = ("corner", "corner_floor", "flat", "flat_floor")  # the keys a scale multiplies
+
+
 def scatter_overrides(scatter, scale=1.0):
-    return [f"scatter.corner={scale * scatter.corner!r}", f"scatter.flat={scale * scatter.flat!r}",
+    return [*(f"scatter.{key}={scale * getattr(scatter, key)!r}" for key in SCATTER_SCALED),
             f"scatter.draws={scatter.draws}", f"scatter.seed={scatter.seed}"]
 
 
@@ -338,18 +342,19 @@ def scatter_table(runner, args):
                 draw_sweep_file(sweep.path, FIGURES / f"chaos_scatter_{name}.png", dpi=80)
             rows.append([
                 f"{name} (n = {sweep.sides})", f"{scale_num} x {scale_num}", sweep.draws,
-                f"{scale * scatter.corner:.4f}, {scale * scatter.flat:.4f}",
+                ", ".join(f"{scale * getattr(scatter, key):.4f}" for key in SCATTER_SCALED),
                 f"{100 * p.predictable:.1f} % [{100 * low:.1f}, {100 * high:.1f}]",
                 f"{sweep.probability[:-1].max(axis=0).mean():.3f}",
                 f"{p.basin_entropy:.3f} ({p.basin_entropy_corrected:.3f})", f"{math.log(sweep.sides):.3f}",
                 f"{100 * p.no_answer:.2f} %", f"{100 * same:.1f} %" if scale_num == num else "",
             ])
-    header = ["map", "pixels", "draws M", "spread corner, flat", "predictable: p >= 0.9 [range from the M draws]",
+    header = ["map", "pixels", "draws M", "corner: spread, floor; flat: spread, floor", "predictable: p >= 0.9 [range from the M draws]",
               "mean p(most likely)", "basin entropy, nats (Miller-Madow)", "fair die ln n", "no answer",
               "most likely side = deterministic side"]
-    source = (f"\n\nSpreads from `{SCATTER_CONFIG.relative_to(ROOT)}` ([scatter] corner = {scatter.corner:.4f}, "
-              f"flat = {scatter.flat:.4f}, draws = {scatter.draws}, seed = {scatter.seed}); rows at "
-              f"{' and '.join(f'{k:g}' for k in SCATTER_SCALES)} times the spreads at half the resolution.")
+    keys = ", ".join(f"{key} = {getattr(scatter, key):.4g}" for key in SCATTER_SCALED)
+    source = (f"\n\nThe law from `{SCATTER_CONFIG.relative_to(ROOT)}` ([scatter] {keys}; draws = {scatter.draws}, "
+              f"seed = {scatter.seed}; floors in sqrt(g R) of each die); rows at "
+              f"{' and '.join(f'{k:g}' for k in SCATTER_SCALES)} times the spreads and floors at half the resolution.")
     write_table("scatter", table(header, rows) + source
                 + footer(f"python scripts/chaos_tables.py scatter --num {runner.num}", started, runner=runner))
 
