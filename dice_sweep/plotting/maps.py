@@ -189,7 +189,9 @@ def outcome_title(cfg, complete=True):
     if cfg.world.g != 9.81:
         extras.append(f"g = {cfg.world.g:g}")
     if cfg.scatter.on:
-        extras.append(f"impacts scattered: corner {cfg.scatter.corner:.3g}, flat {cfg.scatter.flat:.3g}")
+        law = cfg.scatter
+        floors = f" (floors {law.corner_floor:.3g}, {law.flat_floor:.3g} sqrt(gR))" if law.corner_floor or law.flat_floor else ""
+        extras.append(f"impacts scattered: corner {law.corner:.3g}, flat {law.flat:.3g}{floors}")
     if extras:
         title += "\n" + ", ".join(extras)
     return title if complete else f"{title} (incomplete)"

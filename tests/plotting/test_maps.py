@@ -124,6 +124,8 @@ def test_title_names_every_effect_that_is_on():
     scattered = config.parse_config("[scatter]\ncorner = 0.0458\nflat = 0.0938\ndraws = 4\n")
     assert plotting.outcome_title(scattered).split("\n")[1] == "impacts scattered: corner 0.0458, flat 0.0938"
     assert "\n" not in plotting.outcome_title(config.parse_config("[scatter]\ndraws = 4\n"))
+    floored = config.parse_config("[scatter]\ncorner = 0.03\ncorner_floor = 0.12\nflat_floor = 0.05\n")
+    assert plotting.outcome_title(floored).endswith("corner 0.03, flat 0 (floors 0.12, 0.05 sqrt(gR))")
 
 
 def test_comparison_draws_each_sweep_in_its_own_panel(tmp_path):
