@@ -58,6 +58,7 @@ chaos: $(STAMP)
 	$(BIN)/python scripts/chaos_tables.py contact
 	$(BIN)/python scripts/chaos_tables.py refine
 	$(BIN)/python scripts/chaos_tables.py control
+	$(BIN)/python scripts/chaos_tables.py scatter --num 256
 
 # A sweep cut into shards, one process each, then merged (docs/scaling.md):
 #   make -j2 shards CONFIG=configs/fig10.toml SHARDS=8 SET="--set grid.x.num=1024"

@@ -280,7 +280,9 @@ def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, 
     With --refine LEVELS the grid is computed as a quadtree: OUT.h5 has the same maps at the
     full resolution plus /simulated, the pixels rolled at their own centre (docs/hdf5.md).
     With --executor dask the tiles run on a dask cluster and this process writes OUT.h5 as
-    they arrive; --shard and --resume work the same (docs/scaling.md).
+    they arrive; --shard and --resume work the same (docs/scaling.md). With [scatter] draws
+    M > 1 every cell is rolled M times under the stochastic impact law, and OUT.h5 also holds
+    the share of each side (/probability_k, /no_answer; docs/chaos.md, docs/hdf5.md).
 
     \b
     Example: dice-sweep sweep configs/fig08.toml -o out/fig08.h5 --png out/fig08.png --workers 2
@@ -355,7 +357,9 @@ def plot(h5_path, png_path, box, dpi):
 @click.option("--png", "png_dir", metavar="DIR", help="Draw uncertainty.png and box_entropy.png into this folder.")
 @click.option("--box-size", type=int, default=5, show_default=True, callback=_at_least_one, help="Box side in pixels for Sb and Sbb.")
 def measure(h5_path, json_path, png_dir, box_size):
-    """Measure the chaos of a sweep file: outcome fractions, Sb, Sbb and the uncertainty exponent.
+    """Measure the chaos of a sweep file: outcome fractions, Sb, Sbb and the uncertainty exponent;
+    for a probability sweep ([scatter] draws > 1) also the predictable share (one side p >= 0.9)
+    and the basin entropy (mean outcome entropy, nats).
 
     \b
     Example: dice-sweep measure out/demo.h5 --json out/demo_chaos.json --png out/demo_chaos
@@ -597,11 +601,18 @@ def forecast_command(data, config_path, rate, angle, no_check_units, fit_path, f
         report = run_forecast_command(data, _load(config_path, ()), fit_path, from_bounce=from_bounce, members=members, seed=seed, rate=rate,
                                       angle=angle, workers=workers, map_size=map_size, map_axes=map_axes, json_path=json_path,
                                       md_path=md_path, png_dir=png_dir, log=None if quiet else lambda line: click.echo(line, err=True))
+    if report["warnings"]:
+        _warn("; ".join(report["warnings"]))  # one line, before the result
     s = report["scores"]
-    click.echo(f"from flight {s['from_bounce']}, {s['n_tracks']} held-out tracks: log score {s['log_score']['value']:.3f} "
-               f"[{s['log_score']['ci95'][0]:.3f}, {s['log_score']['ci95'][1]:.3f}] (uniform {s['log_score_uniform']['value']:.3f}), "
-               f"Brier {s['brier']['value']:.3f} [{s['brier']['ci95'][0]:.3f}, {s['brier']['ci95'][1]:.3f}] "
-               f"(uniform {s['brier_uniform']['value']:.3f}); most likely side right {100 * s['share_correct_most_likely']['value']:.0f} %, "
+    from dice_sweep.measured.forecast import headline
+
+    name, first = headline(s)
+    click.echo(f"from flight {s['from_bounce']}, {s['n_tracks']} held-out tracks, {name}: log score {first['log_score']['value']:.3f} "
+               f"[{first['log_score']['ci95'][0]:.3f}, {first['log_score']['ci95'][1]:.3f}] (uniform {s['log_score_uniform']['value']:.3f}), "
+               f"skill {first['log_skill']['value']:.3f} [{first['log_skill']['ci95'][0]:.3f}, {first['log_skill']['ci95'][1]:.3f}] nats, "
+               f"Brier {first['brier']['value']:.3f} [{first['brier']['ci95'][0]:.3f}, {first['brier']['ci95'][1]:.3f}] "
+               f"(uniform {s['brier_uniform']['value']:.3f}), calibration z log {first['calibration']['log_score_z']:.1f}, "
+               f"Brier {first['calibration']['brier_z']:.1f}; most likely side right {100 * s['share_correct_most_likely']['value']:.0f} %, "
                f"deterministic {100 * s['share_correct_deterministic']['value']:.0f} %")
 
 

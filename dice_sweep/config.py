@@ -16,6 +16,9 @@ beta_tangential = -0.35, beta_normal = 0.2, dt = 0.001 s, R = 1.9/sqrt(2) cm):
     [tracking]   # angle_offset = 0 (rad), time_scale = 1, length_scale = 1: how the tracker saw
                  # the die (measured drops only; the kernel ignores it)
     [world]      # g = 9.81 (m/s^2): the one source of g
+    [scatter]    # corner = 0, flat = 0 (1): relative spread of each impact's velocity jump,
+                 # corner_floor = 0, flat_floor = 0 (sqrt(g R)): its floor (all 0: the
+                 # deterministic law), draws = 1 per start, seed = 0 (docs/physics.md)
 
 The keys of [effects] and [tracking] come from the effect registry (dice_sweep/effects.py).
     [integrator] # method = "event" | "fixed_step", dt = 0.001 (s), t_max = 30 (s), max_events
@@ -48,6 +51,7 @@ __all__ = [
     "Integrator",
     "Effects",
     "Tracking",
+    "Scatter",
     "Axis",
     "Grid",
     "Config",
@@ -86,6 +90,9 @@ TOUCH_TOLERANCE = 1e-12  # relative to the circumradius
 # Contact window (s): a real die's contact lasts about 1e-4 s (docs/physics.md), and a window
 # beyond 1e-3 s would merge bounces of a rocking die that are separate events
 MAX_CONTACT_WINDOW = 1e-3
+MAX_SCATTER = 1.0  # relative spread of an impact's velocity jump: beyond 1 the jump exceeds the approach
+MAX_DRAWS = 4096  # draws per start of a stochastic sweep
+MAX_SEED = 2**53 - 1  # the kernel keeps the seed in a float64 slot, exact below 2^53
 DEFAULT_CONTACT_WINDOW = 1e-6  # s; docs/physics.md, "Two contacts at once", says why
 
 
@@ -166,6 +173,28 @@ class World:
 
 
 @dataclass(frozen=True)
+class Scatter:
+    """The stochastic impact law (docs/physics.md, "Scattered impacts"): ``corner`` and
+    ``flat`` (1, in [0, 1]) are the standard deviation of each impact's velocity jump over the
+    touching corner's approach speed, for landings on a corner and near flat (within 15 deg);
+    ``corner_floor`` and ``flat_floor`` (in sqrt(g R), in [0, 1]) the sd at a vanishing
+    approach: sd = min(sqrt((spread u)^2 + (floor sqrt(g R))^2), u); all 0 is the deterministic
+    law. ``draws`` (1..4096): rolls per start of a sweep; ``seed``: the
+    random streams' seed."""
+
+    corner: float = 0.0
+    flat: float = 0.0
+    corner_floor: float = 0.0
+    flat_floor: float = 0.0
+    draws: int = 1
+    seed: int = 0
+
+    @property
+    def on(self):
+        return max(self.corner, self.flat, self.corner_floor, self.flat_floor) > 0.0
+
+
+@dataclass(frozen=True)
 class Integrator:
     """``method`` ("event" or "fixed_step"), step ``dt`` (s), time limit ``t_max`` (s), ``max_events``."""
 
@@ -229,6 +258,7 @@ class Config:
     grid: Grid | None
     effects: Effects = None  # filled by the loader; None only for hand-built configs
     tracking: Tracking = Tracking()
+    scatter: Scatter = Scatter()
     source: str = field(default="<string>", compare=False)
 
     def with_initial(self, **values):
@@ -295,6 +325,14 @@ _SECTION_SPECS = {
         "t_max": _positive(30.0, "s"),
         "max_events": _Spec(int, 100_000, low=1, high=MAX_EVENTS),
     },
+    "scatter": {
+        "corner": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="(of the approach speed)"),
+        "flat": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="(of the approach speed)"),
+        "corner_floor": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="sqrt(g R)"),
+        "flat_floor": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="sqrt(g R)"),
+        "draws": _Spec(int, 1, low=1, high=MAX_DRAWS),
+        "seed": _Spec(int, 0, low=0, high=MAX_SEED),
+    },
 }
 for _section, _keys in effect_registry.config_key_specs().items():
     _SECTION_SPECS.setdefault(_section, {}).update({
@@ -311,6 +349,7 @@ _SECTION_CLASSES = {
     "integrator": Integrator,
     "effects": Effects,
     "tracking": Tracking,
+    "scatter": Scatter,
 }
 _AXIS_SPECS = {
     "param": _Spec(str, choices=GRID_PARAMS),
@@ -708,7 +747,8 @@ def config_to_toml(cfg):
     lines = []
     for name in _SECTIONS:
         section = getattr(cfg, name)
-        if section is None or section == Walls(separation=None):
+        # no [walls]: no walls; no [scatter]: the deterministic law (files as before it existed)
+        if section is None or section == Walls(separation=None) or section == Scatter():
             continue
         lines.append(f"[{name}]")
         lines += [f"{item.name} = {_toml_value(getattr(section, item.name))}" for item in dataclasses.fields(section)]

@@ -24,6 +24,7 @@ from dice_sweep.engine import ENGINE_NUMBA, ENGINE_PLAIN, sweep_engine
 from dice_sweep.engine import run as engine_run
 from dice_sweep.executor import ordered_map
 from dice_sweep.physics import pack_params, roll_batch
+from dice_sweep.physics.kernel import roll_batch_streams
 from dice_sweep.physics.layout import COUNT_COLUMNS, STATE_COLUMNS
 from dice_sweep.roll import initial_state
 
@@ -72,7 +73,7 @@ class Mapper:
         fpar, ipar = pack_params(cfg)
         return cls(fpar, ipar)
 
-    def roll(self, states, engine: str | None = None) -> Rolls:
+    def roll(self, states, engine: str | None = None, streams=None) -> Rolls:
         """One ``roll_batch`` call on every start, in this process.
 
         Parameters
@@ -81,14 +82,42 @@ class Mapper:
             float64 (N, 6), columns ``STATE_COLUMNS``, SI.
         engine : str, optional
             Overrides the mapper's engine for this call.
+        streams : numpy.ndarray, optional
+            float64 (N, 2): each start's random stream (pixel, draw) for the stochastic impact
+            law (``roll_batch_streams``); None: ``roll_batch``, every roll on stream (0, 0).
 
         Returns
         -------
         Rolls
         """
         rolls = _empty_rolls(len(states))
-        engine_run(roll_batch, engine or self.engine, self.fpar, self.ipar, states, *rolls)
+        if streams is None:
+            engine_run(roll_batch, engine or self.engine, self.fpar, self.ipar, states, *rolls)
+        else:
+            engine_run(roll_batch_streams, engine or self.engine, self.fpar, self.ipar, states,
+                       np.ascontiguousarray(streams, dtype=np.float64), *rolls)
         return rolls
+
+    def roll_draws(self, states, pixels, draws: int, engine: str | None = None) -> Rolls:
+        """``draws`` rolls of each start under the stochastic impact law, start k's draw m on
+        the random stream (``pixels[k]``, m), in this process.
+
+        Parameters
+        ----------
+        states : numpy.ndarray
+            float64 (N, 6), columns ``STATE_COLUMNS``, SI.
+        pixels : array_like of int
+            (N,): each start's stream number, 0 <= pixel < 2^53 (a sweep: its pixel j nx + i).
+        draws : int
+            Rolls per start.
+
+        Returns
+        -------
+        Rolls
+            N * draws rolls, start-major: rows k draws .. (k + 1) draws - 1 are start k's.
+        """
+        return self.roll(np.repeat(np.asarray(states, dtype=np.float64), draws, axis=0), engine,
+                         streams=draw_streams(pixels, draws))
 
     def with_engine_for(self, states, rolls: int, workers: int) -> "Mapper":
         """This mapper on the engine that finishes ``rolls`` rolls like ``states`` (an array,
@@ -106,18 +135,26 @@ class Mapper:
         self.roll(np.array(start, dtype=np.float64).reshape(1, len(STATE_COLUMNS)))
 
 
-class _ChunkRoll:
-    """Picklable task of the pool: item k is ``mapper.roll`` of chunk k."""
+def draw_streams(pixels, draws: int) -> np.ndarray:
+    """float64 (N * draws, 2): the streams (pixel, draw) of ``draws`` draws of each of the
+    ``pixels``, pixel-major (:meth:`Mapper.roll_draws`)."""
+    pixels = np.asarray(pixels, dtype=np.int64)
+    return np.column_stack([np.repeat(pixels, draws), np.tile(np.arange(draws), len(pixels))]).astype(np.float64)
 
-    def __init__(self, mapper: Mapper, chunks):
+
+class _ChunkRoll:
+    """Picklable task of the pool: item k is ``mapper.roll`` of chunk k (with its streams)."""
+
+    def __init__(self, mapper: Mapper, chunks, streams=None):
         self.mapper = mapper
         self.chunks = chunks
+        self.streams = streams
 
     def __call__(self, k: int) -> Rolls:
-        return self.mapper.roll(self.chunks[k])
+        return self.mapper.roll(self.chunks[k], streams=None if self.streams is None else self.streams[k])
 
 
-def roll_states(mapper: Mapper, states, workers: int = 1, on_chunk=None) -> Rolls:
+def roll_states(mapper: Mapper, states, workers: int = 1, on_chunk=None, streams=None) -> Rolls:
     """The mapper on any starts, cut into chunks of ``CHUNK_ROLLS`` over ``workers`` processes
     (the one worker pool, :func:`dice_sweep.executor.ordered_map`), on the engine that
     finishes them soonest.
@@ -131,6 +168,8 @@ def roll_states(mapper: Mapper, states, workers: int = 1, on_chunk=None) -> Roll
         Processes; 1 rolls in this one. The result does not depend on it.
     on_chunk : callable, optional
         Called with the number of rolls of each finished chunk.
+    streams : array_like, optional
+        float (N, 2): each start's random stream (pixel, draw), see :meth:`Mapper.roll`.
 
     Returns
     -------
@@ -139,13 +178,19 @@ def roll_states(mapper: Mapper, states, workers: int = 1, on_chunk=None) -> Roll
     """
     states = np.ascontiguousarray(states, dtype=np.float64)
     chunks = [states[start : start + CHUNK_ROLLS] for start in range(0, len(states), CHUNK_ROLLS)]
+    stream_chunks = None
+    if streams is not None:
+        streams = np.ascontiguousarray(streams, dtype=np.float64)
+        stream_chunks = [streams[start : start + CHUNK_ROLLS] for start in range(0, len(states), CHUNK_ROLLS)]
     mapper = mapper.with_engine_for(states, len(states), min(workers, max(1, len(chunks))))
     if not chunks:
-        return mapper.roll(states)
+        return mapper.roll(states, streams=streams)
     if workers > 1 and len(chunks) > 1:
         mapper.warm_up(states[0])  # compile before forking, so that every worker inherits the kernel
+        if streams is not None:
+            mapper.roll(states[:1], streams=streams[:1])
     done = None if on_chunk is None else (lambda k: on_chunk(len(chunks[k])))
-    results = ordered_map(_ChunkRoll(mapper, chunks), len(chunks), workers, on_result=done)
+    results = ordered_map(_ChunkRoll(mapper, chunks, stream_chunks), len(chunks), workers, on_result=done)
     return Rolls(*(np.concatenate(parts) for parts in zip(*results)))
 
 

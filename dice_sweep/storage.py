@@ -37,6 +37,8 @@ UNDECIDED = -1  # /outcome of a roll without an answer (layout 1: also of a cell
 OUTCOME_NOT_COMPUTED = -128  # /outcome of a cell not computed yet: no side, and not UNDECIDED
 COUNT_NOT_COMPUTED = np.iinfo(np.uint16).max  # a counter of a cell not computed yet
 COUNT_MAX = COUNT_NOT_COMPUTED - 1  # counters are clipped here (layout 1: at 65535, fill 0)
+PROBABILITY_PREFIX = "probability_"  # /probability_k: share of a cell's draws ending on side k
+NO_ANSWER = "no_answer"  # its share of draws without a side; the shares of a cell sum to 1
 COUNTS_GROUP = "counts"  # layout 1 kept the counters other than impacts in /counts/<name>
 TILE_DIM = "tile"  # the dimension (and coordinate: tile index) of /done_tiles
 CONVENTIONS = "CF-1.8"
@@ -104,6 +106,9 @@ class SweepHeader:
         Meaning of the kernel status codes (index = code).
     dice_sweep_version : str
         Version of the package that created the file.
+    draws : int
+        Rolls per cell (``[scatter] draws``); above 1 the file also holds the share of the
+        draws ending on each side (docs/hdf5.md, "Probability sweeps").
     """
 
     config_toml: str
@@ -115,11 +120,17 @@ class SweepHeader:
     count_columns: tuple[str, ...]
     status_names: tuple[str, ...]
     dice_sweep_version: str = __version__
+    draws: int = 1
 
     @property
     def shape(self) -> tuple[int, int]:
         """(ny, nx) of the maps."""
         return (len(self.y.values), len(self.x.values))
+
+    @property
+    def probability_sides(self) -> int:
+        """Sides with a probability map: n for a sweep of ``draws`` > 1 rolls per cell, else 0."""
+        return self.sides if self.draws > 1 else 0
 
 
 @dataclasses.dataclass(frozen=True)
@@ -155,6 +166,11 @@ class SweepData:
         Meaning of the status codes below 255.
     dice_sweep_version, created : str
         Version that made the file and its creation time (ISO 8601, UTC).
+    draws : int
+        Rolls per cell; with more than 1, the per-roll maps above are those of draw 0.
+    probability : numpy.ndarray or None
+        float32 (n + 1, ny, nx) for draws > 1: row k < n the share of the draws ending on side
+        k, row n the share with no answer (-1); NaN where not computed. None for one draw.
 
     Whatever the file's layout, a cell not computed reads as layout 1 stored it: outcome -1,
     status 255, counters 0, t_decided NaN; only ``status`` (:attr:`computed`) tells it from
@@ -176,6 +192,8 @@ class SweepData:
     status_names: tuple[str, ...]
     dice_sweep_version: str
     created: str
+    draws: int = 1
+    probability: np.ndarray | None = None
 
     @property
     def computed(self) -> np.ndarray:
@@ -267,11 +285,18 @@ def _reading(path, what: str):
     return _naming(path, f"cannot read its {what}", ": the file is damaged; remove it and rerun the sweep or merge that wrote it")
 
 
-def _map_datasets(count_columns) -> dict[str, tuple[np.dtype, object]]:
+def probability_names(sides: int) -> list[str]:
+    """Map names of a probability sweep's shares: ``probability_0`` .. ``probability_{n-1}``,
+    then ``no_answer`` (docs/hdf5.md, "Probability sweeps")."""
+    return [f"{PROBABILITY_PREFIX}{k}" for k in range(sides)] + [NO_ANSWER] if sides else []
+
+
+def _map_datasets(count_columns, probability_sides: int = 0) -> dict[str, tuple[np.dtype, object]]:
     """Name -> (dtype, fill value) of every (ny, nx) map, as layout 2 stores them.
 
     The name is the map's dataset path in a layout 2 file (:func:`_dataset_paths` gives a
     layout 1 file's) and the key of the dicts of maps this module takes and gives.
+    ``probability_sides`` > 0 adds the shares of a probability sweep of that many sides.
     """
     maps = {
         "outcome": (np.dtype(np.int8), OUTCOME_NOT_COMPUTED),
@@ -280,12 +305,14 @@ def _map_datasets(count_columns) -> dict[str, tuple[np.dtype, object]]:
     }
     for name in count_columns:
         maps[name] = (np.dtype(np.uint16), COUNT_NOT_COMPUTED)
+    for name in probability_names(probability_sides):
+        maps[name] = (np.dtype(np.float32), np.nan)
     return maps
 
 
-def _dataset_paths(count_columns, layout: int) -> dict[str, str]:
+def _dataset_paths(count_columns, layout: int, probability_sides: int = 0) -> dict[str, str]:
     """Map name -> its dataset path in a file of ``layout``."""
-    paths = {name: name for name in _map_datasets(count_columns)}
+    paths = {name: name for name in _map_datasets(count_columns, probability_sides)}
     if layout == 1:
         paths.update({name: f"{COUNTS_GROUP}/{name}" for name in count_columns if name != "impacts"})
     return paths
@@ -304,10 +331,11 @@ def _map_attributes(header: "SweepHeader") -> dict[str, dict]:
     Codes (outcome, status) carry no ``units`` (CF: they are not quantities); t_decided is
     in s and the counters in 1 (dimensionless counts).
     """
-    maps = _map_datasets(header.count_columns)
+    maps = _map_datasets(header.count_columns, header.probability_sides)
+    draw0 = f" (of draw 0 of the {header.draws} rolls of the cell)" if header.draws > 1 else ""
     attrs = {
         "outcome": {
-            "long_name": "side the die came to rest on",
+            "long_name": "side the die came to rest on" + draw0,
             "comment": "0 .. n-1 (n = root attribute sides), numbered as in Smith 2014 Fig. 7; "
             "-1 = undecided: the roll ended without a side, status says why",
             "undecided": np.int8(UNDECIDED),
@@ -324,6 +352,11 @@ def _map_attributes(header: "SweepHeader") -> dict[str, dict]:
             "units": "1",
             "valid_range": np.array([0, COUNT_MAX], dtype=np.uint16),
         }
+    names = probability_names(header.probability_sides)
+    for k, name in enumerate(names):
+        what = f"side {k}" if name != NO_ANSWER else "no side (outcome -1: the roll ended undecided)"
+        attrs[name] = {"long_name": f"share of the {header.draws} draws of the stochastic impact law ending on {what}",
+                       "units": "1", "valid_range": np.array([0.0, 1.0], dtype=np.float32)}
     for name, (dtype, fill) in maps.items():
         attrs[name]["_FillValue"] = dtype.type(fill)
     return attrs
@@ -355,6 +388,21 @@ def rolls_to_maps(count_columns, shape, outcome, status, counts, t_decided) -> d
     for column, name in enumerate(count_columns):
         clipped = np.clip(counts[:, column], 0, COUNT_MAX).astype(np.uint16)
         maps[name] = clipped.reshape(shape)
+    return maps
+
+
+def draws_to_maps(count_columns, shape, sides, draws, outcome, status, counts, t_decided) -> dict:
+    """Kernel outputs of a tile of ``draws`` rolls per cell (cell-major: the draws of a cell
+    are consecutive) -> the stored maps: those of draw 0 (:func:`rolls_to_maps`) and the
+    share of each side and of no answer (:func:`probability_names`), float32."""
+    first = slice(None, None, draws)
+    maps = rolls_to_maps(count_columns, shape, outcome[first], status[first], counts[first], t_decided[first])
+    codes = np.where(outcome < 0, sides, outcome).astype(np.int64)  # no answer counted as code n
+    cells = len(codes) // draws
+    tally = np.bincount(np.arange(len(codes)) // draws * (sides + 1) + codes, minlength=cells * (sides + 1))
+    tally = tally.reshape(cells, sides + 1)
+    for k, name in enumerate(probability_names(sides)):
+        maps[name] = (tally[:, k] / draws).astype(np.float32).reshape(shape)
     return maps
 
 
@@ -395,15 +443,16 @@ def _shuffle(values: np.ndarray) -> bytes:
     return flat.view(np.uint8).reshape(-1, flat.itemsize).T.tobytes()
 
 
-def encode_tile(maps: Mapping, chunk: tuple[int, int], count_columns) -> EncodedTile:
-    """The chunks of a tile's maps (from :func:`rolls_to_maps`) as the file stores them.
+def encode_tile(maps: Mapping, chunk: tuple[int, int], count_columns, probability_sides: int = 0) -> EncodedTile:
+    """The chunks of a tile's maps (from :func:`rolls_to_maps`, or :func:`draws_to_maps` with
+    its ``probability_sides``) as the file stores them.
 
     A tile at the grid's edge is padded to the full chunk with the fill value; HDF5 ignores
     what lies outside the dataset.
     """
     shape = next(iter(maps.values())).shape
     chunks = {}
-    for name, (dtype, fill) in _map_datasets(count_columns).items():
+    for name, (dtype, fill) in _map_datasets(count_columns, probability_sides).items():
         padded = np.full(chunk, fill, dtype=dtype)
         padded[: shape[0], : shape[1]] = maps[name]
         chunks[name] = zlib.compress(_shuffle(padded), _GZIP_LEVEL)
@@ -416,11 +465,11 @@ def encode_rolls(rolls, shape: tuple[int, int], chunk: tuple[int, int], count_co
     return encode_tile(rolls_to_maps(count_columns, shape, *rolls), chunk, count_columns)
 
 
-def decode_tile(encoded: EncodedTile, chunk: tuple[int, int], count_columns) -> dict[str, np.ndarray]:
+def decode_tile(encoded: EncodedTile, chunk: tuple[int, int], count_columns, probability_sides: int = 0) -> dict[str, np.ndarray]:
     """The maps of an :class:`EncodedTile` (the inverse of :func:`encode_tile`)."""
     maps = {}
     rows, cols = encoded.shape
-    for name, (dtype, _) in _map_datasets(count_columns).items():
+    for name, (dtype, _) in _map_datasets(count_columns, probability_sides).items():
         raw = np.frombuffer(zlib.decompress(encoded.chunks[name]), dtype=np.uint8)
         values = raw.reshape(dtype.itemsize, -1).T.copy().view(dtype).reshape(chunk)
         maps[name] = values[:rows, :cols]
@@ -448,7 +497,8 @@ class SweepFile:
         self.layout = int(h5file.attrs["dice_sweep_layout"])
         self._axis_paths = _axis_paths(h5file, self.layout)
         # looking a dataset up by name costs as much as writing a tile's worth of it
-        paths = {**_dataset_paths(header.count_columns, self.layout), "done_tiles": "done_tiles"}
+        self._maps = _map_datasets(header.count_columns, header.probability_sides)
+        paths = {**_dataset_paths(header.count_columns, self.layout, header.probability_sides), "done_tiles": "done_tiles"}
         self._datasets = {name: h5file[path] for name, path in paths.items()}
         self._chunk = chunk_shape(header.tile_shape, header.shape)
         self._one_space = h5py.h5s.create_simple((1,))  # the memory side of _mark_done's write
@@ -458,7 +508,7 @@ class SweepFile:
             and self._datasets[name].compression == _COMPRESSION["compression"]
             and self._datasets[name].compression_opts == _GZIP_LEVEL
             and self._datasets[name].shuffle
-            for name in _map_datasets(header.count_columns)
+            for name in self._maps
         )
 
     # --- opening -------------------------------------------------------------------------
@@ -476,7 +526,7 @@ class SweepFile:
         n_tiles : int
             Number of tiles of the whole grid (length of ``/done_tiles``).
         """
-        maps = _map_datasets(header.count_columns)
+        maps = _map_datasets(header.count_columns, header.probability_sides)
         axis_paths = (header.y.param, header.x.param)  # the axes are named after their parameters
         if axis_paths[0] == axis_paths[1] or {*maps, "done_tiles", TILE_DIM, SIMULATED, REFINE_LEVEL} & {*axis_paths}:
             raise ValueError(f"swept parameters {axis_paths} are not two names free in the layout")
@@ -502,6 +552,8 @@ class SweepFile:
                 "shard_rule": SHARD_RULE,
                 "tile_shape": np.asarray(header.tile_shape, dtype=np.int64),
                 "count_columns": list(header.count_columns),
+                # only a probability sweep has it: the files of one roll per cell are as before
+                **({"draws": np.int64(header.draws)} if header.draws > 1 else {}),
             }
         )
         for axis in (header.y, header.x):
@@ -597,7 +649,7 @@ class SweepFile:
                     self._datasets[name].id.write_direct_chunk((rows.start, cols.start), chunk_bytes)
             else:
                 if isinstance(maps, EncodedTile):
-                    maps = decode_tile(maps, self._chunk, self.header.count_columns)
+                    maps = decode_tile(maps, self._chunk, self.header.count_columns, self.header.probability_sides)
                 for name, values in maps.items():
                     self._datasets[name][rows, cols] = values
             self._mark_done(tile_index)
@@ -628,7 +680,7 @@ class SweepFile:
         if not self._copies_chunks(rows, cols):
             return self.read_block(rows, cols)
         chunks = {}
-        for name in _map_datasets(self.header.count_columns):
+        for name in self._maps:
             try:
                 filter_mask, chunk_bytes = self._datasets[name].id.read_direct_chunk((rows.start, cols.start))
             except (OSError, RuntimeError, ValueError):  # a chunk never written
@@ -640,9 +692,8 @@ class SweepFile:
 
     def read_block(self, rows: slice, cols: slice) -> dict[str, np.ndarray]:
         """Stored arrays of a block, by map name (the form :meth:`write_tile` takes)."""
-        names = _map_datasets(self.header.count_columns)
         with _reading(self.path, "maps"):
-            return {name: self._datasets[name][rows, cols] for name in names}
+            return {name: self._datasets[name][rows, cols] for name in self._maps}
 
     def mark_complete(self) -> None:
         """Set the ``complete`` attribute (call only when every tile of the shard is done)."""
@@ -656,6 +707,7 @@ class SweepFile:
         with _reading(self.path, "maps"):
             maps = {name: self._datasets[name][...] for name in ("outcome", "status", "impacts", "t_decided")}
             counts = {name: self._datasets[name][...] for name in extra}
+            shares = [self._datasets[name][...] for name in probability_names(header.probability_sides)]
         not_computed = maps["status"] == NOT_COMPUTED  # as layout 1 stored them (SweepData)
         maps["outcome"][not_computed] = UNDECIDED
         for values in (maps["impacts"], *counts.values()):
@@ -673,6 +725,8 @@ class SweepFile:
             status_names=header.status_names,
             dice_sweep_version=header.dice_sweep_version,
             created=self.created,
+            draws=header.draws,
+            probability=np.stack(shares) if shares else None,
         )
 
 
@@ -733,6 +787,7 @@ def _read_header(h5: h5py.File) -> SweepHeader:
         count_columns=_str_tuple(attrs["count_columns"]),
         status_names=_str_tuple(status["names"]) if layout == 1 else tuple(str(status["flag_meanings"]).split()),
         dice_sweep_version=str(attrs["dice_sweep_version"]),
+        draws=int(attrs.get("draws", 1)),
     )
 
 

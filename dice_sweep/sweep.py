@@ -34,7 +34,9 @@ from dice_sweep.storage import (
     SweepHeader,
     chunk_shape,
     create_whole,
+    draws_to_maps,
     encode_rolls,
+    encode_tile,
     exists_error,
 )
 
@@ -183,35 +185,58 @@ class TileGrid:
 @dataclasses.dataclass(frozen=True, eq=False)
 class SweepJob:
     """A grid cut into tiles and the mapper that rolls its cells (picklable and config-free:
-    its :meth:`task` carries it to the workers). Build it with :meth:`from_config`."""
+    its :meth:`task` carries it to the workers). Build it with :meth:`from_config`.
+
+    With the stochastic impact law (``stochastic``, [scatter] spreads above 0) or ``draws``
+    > 1, every cell is rolled ``draws`` times, draw m of cell (row j, column i) on the random
+    stream (pixel j nx + i, draw m): a cell's rolls depend on the cell alone, never on the
+    tile, shard or worker. ``sides``: the die's n (for the shares of the draws)."""
 
     mapper: Mapper
     plane: Plane
     xs: np.ndarray
     ys: np.ndarray
     tiles: TileGrid
+    draws: int = 1
+    stochastic: bool = False
+    sides: int = 0
 
     @classmethod
     def from_config(cls, cfg, tile_shape=DEFAULT_TILE_SHAPE) -> "SweepJob":
         """The job of a config's grid (which the caller has checked it has) cut into tiles of
         ``tile_shape``."""
         xs, ys = axis_values(cfg.grid.x), axis_values(cfg.grid.y)
-        return cls(Mapper.from_config(cfg), Plane.from_config(cfg), xs, ys, TileGrid((len(ys), len(xs)), tuple(tile_shape)))
+        return cls(Mapper.from_config(cfg), Plane.from_config(cfg), xs, ys, TileGrid((len(ys), len(xs)), tuple(tile_shape)),
+                   cfg.scatter.draws, cfg.scatter.on or cfg.scatter.draws > 1, cfg.die.sides)
 
     def tile_states(self, index: int) -> np.ndarray:
         """Starts of the cells of tile ``index``, row-major."""
         rows, cols = self.tiles.bounds(index)
         return self.plane.grid(self.xs[cols], self.ys[rows])
 
+    def tile_pixels(self, index: int) -> np.ndarray:
+        """Pixel numbers (row j, column i -> j nx + i, over the whole grid) of the cells of tile
+        ``index``, row-major: their random streams."""
+        rows, cols = self.tiles.bounds(index)
+        return (np.arange(rows.start, rows.stop)[:, None] * self.tiles.shape[1] + np.arange(cols.start, cols.stop)).ravel()
+
     def tile_rolls(self, index: int) -> Rolls:
-        """The mapper on the cells of tile ``index`` (one batch, in this process)."""
-        return self.mapper.roll(self.tile_states(index))
+        """The mapper on the cells of tile ``index`` (one batch, in this process); with the
+        stochastic law, the ``draws`` rolls of each cell, a cell's draws consecutive."""
+        if not self.stochastic:
+            return self.mapper.roll(self.tile_states(index))
+        return self.mapper.roll_draws(self.tile_states(index), self.tile_pixels(index), self.draws)
 
     def stored_tile(self, index: int) -> EncodedTile:
-        """Tile ``index`` rolled and encoded as the file stores it (:func:`storage.encode_rolls`)."""
+        """Tile ``index`` rolled and encoded as the file stores it (:func:`storage.encode_rolls`;
+        with ``draws`` > 1, :func:`storage.draws_to_maps`: draw 0 and the shares of the draws)."""
         rows, cols = self.tiles.bounds(index)
         shape = (rows.stop - rows.start, cols.stop - cols.start)
-        return encode_rolls(self.tile_rolls(index), shape, chunk_shape(self.tiles.tile_shape, self.tiles.shape), COUNT_COLUMNS)
+        chunk = chunk_shape(self.tiles.tile_shape, self.tiles.shape)
+        if self.draws == 1:
+            return encode_rolls(self.tile_rolls(index), shape, chunk, COUNT_COLUMNS)
+        maps = draws_to_maps(COUNT_COLUMNS, shape, self.sides, self.draws, *self.tile_rolls(index))
+        return encode_tile(maps, chunk, COUNT_COLUMNS, self.sides)
 
     def task(self) -> TileTask:
         """What the worker pool computes for this job: each tile, stored as the file takes it.
@@ -224,11 +249,13 @@ class SweepJob:
         """Compile (or load) the kernel in this process (:meth:`Mapper.warm_up` on the
         grid's unswept start), so that forked workers inherit it."""
         self.mapper.warm_up(self.plane.base_state)
+        if self.stochastic:  # the kernel with streams is another compile
+            self.mapper.roll_draws(self.plane.base_state[None], np.zeros(1, dtype=np.int64), 1)
 
     def with_engine_for(self, todo: Sequence[int], workers: int) -> "SweepJob":
         """This job on the engine that rolls tiles ``todo`` soonest (:meth:`Mapper.with_engine_for`,
         probed on starts spread over them)."""
-        rolls = sum(self.tiles.size(index) for index in todo)
+        rolls = sum(self.tiles.size(index) for index in todo) * self.draws
         mapper = self.mapper.with_engine_for(lambda: _probe_states(self, todo), rolls, min(workers, max(1, len(todo))))
         return dataclasses.replace(self, mapper=mapper)
 
@@ -297,6 +324,7 @@ def sweep_header(cfg, tile_shape=DEFAULT_TILE_SHAPE, shard=(0, 1)) -> SweepHeade
         shard=shard,
         count_columns=COUNT_COLUMNS,
         status_names=STATUS_NAMES,
+        draws=cfg.scatter.draws,
     )
 
 
@@ -400,7 +428,11 @@ def run_sweep(
     path = Path(out_path)
     tiles = job.tiles
     shard_tiles = tiles.shard_tiles(shard)
-    rolls_in_shard = sum(tiles.size(index) for index in shard_tiles)
+
+    def tile_rolls(index):  # rolls of a tile: its cells times their draws
+        return tiles.size(index) * job.draws
+
+    rolls_in_shard = sum(tile_rolls(index) for index in shard_tiles)
 
     kernel_seconds = 0.0  # set by the warm-up below; summary reads it when called
 
@@ -422,7 +454,7 @@ def run_sweep(
                 return summary(0, True, already_complete=True)
             done = _tiles_written(existing, tiles)
     todo = [index for index in shard_tiles if not done[index]]
-    rolls_todo = sum(tiles.size(index) for index in todo)
+    rolls_todo = sum(tile_rolls(index) for index in todo)
 
     rolls_computed = 0
     try:
@@ -443,8 +475,8 @@ def run_sweep(
         ):
             for index, maps in results:
                 sweep_file.write_tile(index, *tiles.bounds(index), maps)
-                rolls_computed += tiles.size(index)
-                bar.update(tiles.size(index))
+                rolls_computed += tile_rolls(index)
+                bar.update(tile_rolls(index))
                 if on_tile is not None:
                     on_tile(index, rolls_computed)
             complete = bool(sweep_file.done_tiles()[shard_tiles].all())

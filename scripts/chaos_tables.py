@@ -6,7 +6,11 @@ dice_sweep.refine, prints the table and writes it into docs/chaos.md between the
 ``<!-- table:NAME -->`` and ``<!-- /table:NAME -->``. Figures go to docs/figures/chaos_*.png.
 Public API only. ``make chaos`` runs them all.
 
-    python scripts/chaos_tables.py validation|sides|walls|time_step|contact|refine|control [--workers N] [--num N]
+    python scripts/chaos_tables.py validation|sides|walls|time_step|contact|refine|control|scatter [--workers N] [--num N]
+
+``scatter`` reads the law of real bounces from configs/scatter_real.toml ([scatter] corner,
+corner_floor, flat, flat_floor, draws, seed) and sweeps Figs 8, 9 and 11 with it (probability
+maps, docs/chaos.md).
 """
 
 import argparse
@@ -27,6 +31,7 @@ from dice_sweep.chaos import (
     compare_control,
     control_map,
     measure_map,
+    measure_probability,
     monte_carlo_indices,
     outcome_fractions,
     random_map_entropy,
@@ -34,7 +39,7 @@ from dice_sweep.chaos import (
     uncertainty_curve,
     weierstrass_map,
 )
-from dice_sweep.app.sweep import draw_sweep_files
+from dice_sweep.app.sweep import draw_sweep_file, draw_sweep_files
 from dice_sweep.config import config_to_toml, load_config
 from dice_sweep.plotting import (
     axis_label,
@@ -68,6 +73,10 @@ CONTROL_SIGMAS = {"fig08": {"y0": 0.002, "omega0": 0.5}, "fig11": {"y0": 0.002, 
 CONTROL_SCALES = (0.5, 1.0, 2.0, 4.0)  # thrower precision: multiples of the sigmas above
 CONTROL_SAMPLES, CONTROL_POINTS = 256, 64
 WALL_BANDS = 4  # vx0 bands for "where" the walls change the sensitivity
+SCATTER_CONFIG = ROOT / "configs" / "scatter_real.toml"  # the spreads of real bounces
+SCATTER_FIGURES = ("fig08", "fig09", "fig11")
+SCATTER_SCALES = (0.5, 2.0)  # the spreads' multiples also swept, at half the resolution
+SLOW_FIGURES = {"fig09": 2}  # n = 20: ~130 impacts a roll, 30 times slower; its grid divided by this
 
 
 # --- sweeps and the document -------------------------------------------------------------
@@ -319,6 +328,48 @@ def control_table(runner, args):
     write_table("control", markdown + footer(f"python scripts/chaos_tables.py control --num {runner.num}", started, runner=runner))
 
 
+SCATTER_SCALED = ("corner", "corner_floor", "flat", "flat_floor")  # the keys a scale multiplies
+
+
+def scatter_overrides(scatter, scale=1.0):
+    return [*(f"scatter.{key}={scale * getattr(scatter, key)!r}" for key in SCATTER_SCALED),
+            f"scatter.draws={scatter.draws}", f"scatter.seed={scatter.seed}"]
+
+
+def scatter_table(runner, args):
+    started = time.perf_counter()
+    scatter = load_config(SCATTER_CONFIG).scatter
+    rows = []
+    for name in SCATTER_FIGURES:
+        num = runner.num // SLOW_FIGURES.get(name, 1)
+        deterministic, _ = runner.sweep(name, num=num)
+        for scale, scale_num in ((1.0, num), *((k, num // 2) for k in SCATTER_SCALES)):
+            sweep, _ = runner.sweep(name, scatter_overrides(scatter, scale), num=scale_num)
+            p = measure_probability(sweep.probability, sweep.draws)
+            low, high = p.predictable_range
+            best = np.argmax(sweep.probability, axis=0)
+            if scale_num == num:
+                same = np.mean(best == np.where(deterministic.outcome < 0, sweep.sides, deterministic.outcome))
+                draw_sweep_file(sweep.path, FIGURES / f"chaos_scatter_{name}.png", dpi=80)
+            rows.append([
+                f"{name} (n = {sweep.sides})", f"{scale_num} x {scale_num}", sweep.draws,
+                ", ".join(f"{scale * getattr(scatter, key):.4f}" for key in SCATTER_SCALED),
+                f"{100 * p.predictable:.1f} % [{100 * low:.1f}, {100 * high:.1f}]",
+                f"{sweep.probability[:-1].max(axis=0).mean():.3f}",
+                f"{p.basin_entropy:.3f} ({p.basin_entropy_corrected:.3f})", f"{math.log(sweep.sides):.3f}",
+                f"{100 * p.no_answer:.2f} %", f"{100 * same:.1f} %" if scale_num == num else "",
+            ])
+    header = ["map", "pixels", "draws M", "corner: spread, floor; flat: spread, floor", "predictable: p >= 0.9 [range from the M draws]",
+              "mean p(most likely)", "basin entropy, nats (Miller-Madow)", "fair die ln n", "no answer",
+              "most likely side = deterministic side"]
+    keys = ", ".join(f"{key} = {getattr(scatter, key):.4g}" for key in SCATTER_SCALED)
+    source = (f"\n\nThe law from `{SCATTER_CONFIG.relative_to(ROOT)}` ([scatter] {keys}; draws = {scatter.draws}, "
+              f"seed = {scatter.seed}; floors in sqrt(g R) of each die); rows at "
+              f"{' and '.join(f'{k:g}' for k in SCATTER_SCALES)} times the spreads and floors at half the resolution.")
+    write_table("scatter", table(header, rows) + source
+                + footer(f"python scripts/chaos_tables.py scatter --num {runner.num}", started, runner=runner))
+
+
 def binary_entropy(p):
     return -(p * math.log(p) + (1 - p) * math.log(1 - p))
 
@@ -363,6 +414,7 @@ TABLES = {
     "contact": contact_table,
     "refine": refine_table,
     "control": control_table,
+    "scatter": scatter_table,
 }
 
 

@@ -162,6 +162,12 @@ BAD_CONFIGS = [
     ("[grid]\nx = { param = \"omega0\", min = 0.0, max = 60.0, num = 8 }", "grid.y", "missing"),
     ("[grid]\nx = 3\ny = 4", "grid.x", "expected a table"),
     ("[grid]\nz = 3", "grid.z", "allowed keys: x, y"),
+    ("[scatter]\ncorner = 1.5", "scatter.corner", "allowed range [0, 1]"),
+    ("[scatter]\nflat = -0.1", "scatter.flat", "allowed range [0, 1]"),
+    ("[scatter]\ncorner_floor = 2", "scatter.corner_floor", "allowed range [0, 1] sqrt(g R)"),
+    ("[scatter]\ndraws = 0", "scatter.draws", "allowed range [1, 4096]"),
+    ("[scatter]\nseed = -1", "scatter.seed", "allowed range [0, 9.0072e+15]"),
+    ("[scatter]\nspread = 0.1", "scatter.spread", "unknown key 'spread'"),
 ]
 
 
@@ -419,7 +425,15 @@ def test_written_config_has_every_key():
 
 def test_written_config_without_walls_or_grid_omits_them():
     written = tomllib.loads(config_to_toml(default_config()))
-    assert "walls" not in written and "grid" not in written
+    assert "walls" not in written and "grid" not in written and "scatter" not in written
+
+
+def test_scatter_section_is_read_written_and_packed():
+    cfg = parse_config("[scatter]\ncorner = 0.07\nflat = 0.2\ndraws = 64\nseed = 5\n")
+    assert (cfg.scatter.corner, cfg.scatter.flat, cfg.scatter.draws, cfg.scatter.seed) == (0.07, 0.2, 64, 5)
+    assert cfg.scatter.on and not default_config().scatter.on
+    assert parse_config(config_to_toml(cfg)) == cfg
+    assert tomllib.loads(config_to_toml(cfg))["scatter"]["draws"] == 64
 
 
 finite = st.floats(allow_nan=False, allow_infinity=False, min_value=-1e300, max_value=1e300)

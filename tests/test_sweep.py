@@ -368,3 +368,96 @@ def test_resume_recomputes_a_tile_recorded_without_its_data(cfg, reference, tmp_
     summary = sweep(cfg, path, workers=1, resume=True)
     assert summary.complete and summary.rolls_computed == 12
     assert_same_maps(read_sweep(path), reference)
+
+
+# --- probability sweeps: M draws per cell under the stochastic impact law (issue 31) ---------
+
+DRAWS = 48
+# t_max 0.3 s: the high drops end undecided, so the no-answer share is not always 0
+SCATTERED = "\n[scatter]\ncorner = 0.05\nflat = 0.05\ndraws = 48\nseed = 5\n[integrator]\nt_max = 0.3\n"
+
+
+@pytest.fixture(scope="module")
+def scattered_cfg():
+    return parse_config(CONFIG_TEXT + SCATTERED, "scattered.toml")
+
+
+@pytest.fixture(scope="module")
+def scattered(scattered_cfg, tmp_path_factory):
+    path = tmp_path_factory.mktemp("scattered") / "scattered.h5"
+    summary = sweep(scattered_cfg, path, workers=1)
+    assert summary.complete and summary.rolls_computed == 70 * DRAWS
+    return read_sweep(path)
+
+
+def plain_monte_carlo(cfg, first_draw):
+    """Shares (n + 1, ny, nx) of DRAWS rolls per cell, each a single roll of the mapper on the
+    stream (j nx + i, first_draw + m): the test's own loop, row n the rolls without a side."""
+    mapper = Mapper.from_config(cfg)
+    xs, ys = axis_values(cfg.grid.x), axis_values(cfg.grid.y)
+    shares = np.zeros((cfg.die.sides + 1, len(ys), len(xs)))
+    for j, y in enumerate(ys):
+        for i, x in enumerate(xs):
+            start = initial_states(cfg, [x], [y])
+            for m in range(DRAWS):
+                side = int(mapper.roll(start, streams=np.array([[j * len(xs) + i, first_draw + m]], dtype=float)).outcome[0])
+                shares[side if side >= 0 else cfg.die.sides, j, i] += 1.0 / DRAWS
+    return shares
+
+
+def test_probability_maps_are_the_shares_of_each_cells_own_streams(scattered_cfg, scattered):
+    """The same streams rolled one by one give the file's shares (and its no-answer share)."""
+    assert scattered.draws == DRAWS and scattered.probability.shape == (5, 7, 10)
+    np.testing.assert_allclose(scattered.probability, plain_monte_carlo(scattered_cfg, 0), rtol=0, atol=1e-6)
+    assert scattered.probability[-1].max() > 0  # some draws without a side: the test covers them
+
+
+def test_probability_maps_match_an_independent_monte_carlo_within_binomial_noise(scattered_cfg, scattered):
+    """Other draws (streams DRAWS .. 2 DRAWS - 1) of the same pixels: the shares agree within
+    4.5 standard deviations of the difference of two binomial shares, at every pixel and side."""
+    other = plain_monte_carlo(scattered_cfg, DRAWS)
+    pooled = (scattered.probability + other) / 2
+    sd = np.sqrt(np.maximum(pooled * (1 - pooled), 1.0 / DRAWS) * 2 / DRAWS)
+    assert (np.abs(scattered.probability - other) <= 4.5 * sd).all()
+    assert 0 < (scattered.probability.max(axis=0) < 1).mean()  # the law scatters: not a deterministic map
+
+
+def test_shares_of_a_cell_sum_to_one_with_the_no_answer_share(scattered):
+    np.testing.assert_allclose(scattered.probability.sum(axis=0), 1.0, rtol=0, atol=1e-6)
+    draws = scattered.probability * DRAWS
+    np.testing.assert_allclose(draws, np.round(draws), rtol=0, atol=1e-4)  # whole draws
+
+
+def test_draws_with_spreads_0_give_the_deterministic_map(cfg, reference, tmp_path):
+    """[scatter] draws = 8 with both spreads 0: every share 0 or 1, on the deterministic side,
+    and the per-roll maps (draw 0) bit for bit the deterministic sweep's."""
+    unscattered = parse_config(CONFIG_TEXT + "\n[scatter]\ndraws = 8\n", "draws.toml")
+    sweep(unscattered, tmp_path / "draws.h5", workers=1)
+    data = read_sweep(tmp_path / "draws.h5")
+    assert set(np.unique(data.probability)) <= {0.0, 1.0}
+    codes = np.where(reference.outcome < 0, 4, reference.outcome)
+    assert (np.argmax(data.probability, axis=0) == codes).all()
+    assert_same_maps(data, reference)
+
+
+@pytest.mark.parametrize("options", [{"workers": 2}, {"tile_shape": (5, 2)}, {"workers": 2, "tile_shape": (2, 7)}])
+def test_probability_maps_do_not_depend_on_workers_or_tiles(scattered_cfg, scattered, tmp_path, options):
+    run_sweep(scattered_cfg, tmp_path / "other.h5", progress=False, **{"workers": 1, "tile_shape": TILE, **options})
+    data = read_sweep(tmp_path / "other.h5")
+    assert data.probability.tobytes() == scattered.probability.tobytes()
+    assert_same_maps(data, scattered)
+
+
+def test_probability_sweep_interrupted_resumes_and_shards_merge_to_the_same_arrays(scattered_cfg, scattered, tmp_path):
+    path = tmp_path / "interrupted.h5"
+    with pytest.raises(SweepInterrupted):
+        sweep(scattered_cfg, path, workers=1, on_tile=stop_after(2))
+    assert np.isnan(read_sweep(path).probability).any()  # cells not computed: NaN shares
+    sweep(scattered_cfg, path, workers=1, resume=True)
+    assert read_sweep(path).probability.tobytes() == scattered.probability.tobytes()
+    parts = [tmp_path / f"part{i}.h5" for i in range(2)]
+    for i, part in enumerate(parts):
+        sweep(scattered_cfg, part, workers=1, shard=(i, 2))
+    merge_parts(parts, tmp_path / "merged.h5")
+    merged = read_sweep(tmp_path / "merged.h5")
+    assert merged.probability.tobytes() == scattered.probability.tobytes() and merged.draws == DRAWS

@@ -257,3 +257,33 @@ def test_the_docs_install_line_installs_an_h5py_backend():
     unconditional = [r.split(";")[0].strip() for r in requires("h5netcdf") or [] if ";" not in r]
     if not any(r.startswith("h5py") for r in unconditional):
         assert "h5netcdf[h5py]" in words or "h5py" in words, line
+
+
+def test_a_probability_sweep_has_one_share_map_per_side_on_the_same_dimensions(demo_cfg, tmp_path):
+    """[scatter] draws 4: /probability_0 .. /probability_3 and /no_answer as (y0, omega0) maps
+    in 1, summing to 1 where computed, NaN where not (Ctrl-C after the first tile)."""
+    from dice_sweep.config import load_config
+
+    cfg = load_config(ROOT / "configs" / "demo.toml", (*OVERRIDES, "scatter.corner=0.1", "scatter.draws=4"))
+    path = tmp_path / "p.h5"
+
+    def stop(index, rolls):
+        raise KeyboardInterrupt
+
+    with pytest.raises(SweepInterrupted):
+        small_sweep(cfg, path, tile_shape=TILE, on_tile=stop)
+    ds = open_xr(path)
+    names = [f"probability_{k}" for k in range(4)] + ["no_answer"]
+    computed = read_sweep(path).computed
+    total = sum(ds[name] for name in names)
+    for name in names:
+        assert ds[name].dims == ("y0", "omega0") and ds[name].attrs["units"] == "1", name
+        assert "draws" in ds[name].attrs["long_name"], name
+        np.testing.assert_array_equal(np.isnan(ds[name].values), ~computed, err_msg=name)
+    np.testing.assert_allclose(total.values[computed], 1.0, atol=1e-6)
+    assert ds.attrs["draws"] == 4 and ds.no_answer.values[computed].max() > 0  # t_max 0.2 s: some draws undecided
+
+
+def test_a_sweep_of_one_draw_has_no_share_maps_and_no_draws_attribute(complete_path):
+    ds = open_xr(complete_path)
+    assert "draws" not in ds.attrs and not [name for name in ds.variables if name.startswith("probability")]

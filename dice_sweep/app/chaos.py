@@ -52,10 +52,13 @@ def measure_file(path, box_size=DEFAULT_BOX_SIZE) -> ChaosMeasures:
     -------
     ChaosMeasures
     """
-    sweep = read_complete_sweep(path)
-    return measure_map(
-        sweep.outcome, sweep.sides, box_size, x_step=sweep.x.cell_width, y_step=sweep.y.cell_width
-    )
+    return measure_sweep(read_complete_sweep(path), box_size)
+
+
+def measure_sweep(sweep, box_size=DEFAULT_BOX_SIZE) -> ChaosMeasures:
+    """:func:`measure_map` of a sweep read into memory, with its probability maps if it has them."""
+    return measure_map(sweep.outcome, sweep.sides, box_size, x_step=sweep.x.cell_width, y_step=sweep.y.cell_width,
+                       probability=sweep.probability, draws=sweep.draws)
 
 
 def measure_pictures(sweep, measures: ChaosMeasures, png_dir) -> list[pathlib.Path]:
@@ -93,7 +96,7 @@ def run_measure(path, *, box_size=DEFAULT_BOX_SIZE, json_path=None, png_dir=None
     """
     check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
     sweep = read_complete_sweep(path)
-    measures = measure_map(sweep.outcome, sweep.sides, box_size, x_step=sweep.x.cell_width, y_step=sweep.y.cell_width)
+    measures = measure_sweep(sweep, box_size)
     if json_path:
         write_json(json_path, {"file": str(path), **measures.to_dict()})
     if png_dir:

@@ -105,6 +105,7 @@ def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.
         "data": {"path": str(data_path), "rate_hz": trackset.rate, "angle_reading": f"--angle {angle}: {trackset.angle_note}",
                  "table_height_m": table, **run.counts},
         "fit": {"path": str(fit_path), "kind": source.kind, "effects": list(source.spec(cfg).declared + source.effects), "params": source.params,
+                "scatter": source.scatter,
                 "parameter_uncertainty": source.parameter_note, "data_path": source.data_path,
                 "split": {"confirm_fraction": source.confirm_fraction, "seed": source.seed},
                 "same_data": source.data_path is None or Path(str(source.data_path)).name == Path(str(data_path)).name},
@@ -113,6 +114,8 @@ def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.
                      "state_draws_per_param_draw": -(-members // draws), "smoothing": fc.SMOOTHING, "seed": seed,
                      "bootstrap_resamples": fc.BOOTSTRAP, "method": METHOD},
         "scores": scores,
+        "headline": fc.headline(scores)[0],
+        "warnings": fc.warnings(scores, source, cfg),
         "map": summary,
         "timing_s": {"load": loaded - started, "forecast": forecasted - loaded, "map": done - forecasted, "total": done - started},
     }

@@ -9,6 +9,9 @@ from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured.calibrate import CalibrationResult, calibrate
 from dice_sweep.measured.report import at_bound_lines, jsonable, markdown_report, parse_effects, residual_curves
 from dice_sweep.measured.checks import check_measured
+from dice_sweep.measured.forecast import parse_fit
+from dice_sweep.measured.scatter import fitted_scatter
+from dice_sweep.measured.split import CONFIRM_FRACTION
 from dice_sweep.measured.tracks import load_tracks
 from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
 from dice_sweep.plotting import image_formats, plot_calibration, plot_residual_curves
@@ -44,12 +47,22 @@ def _residual_pictures(residuals, prepared, segments, png_dir):
     return [str(path)]
 
 
+def _scatter_of(trackset, cfg, report, path, log=None):
+    """The [scatter] spreads around a fit's law (dice_sweep.measured.scatter) on its selection
+    tracks, for its JSON."""
+    source = parse_fit(report, path or "<fit>", cfg, CONFIRM_FRACTION, 0)
+    return fitted_scatter(trackset, cfg, source.effects, source.params, confirm_fraction=source.confirm_fraction, seed=source.seed,
+                          log=log)
+
+
 def run_fit(data_path, cfg, *, effects=(), rate=None, angle="as-is", json_path=None, png_dir=None, seed=0):
     """Fit the declared model plus ``effects`` on the selection tracks (multiple shooting),
     with 95 % intervals (bootstrap over tracks and the tracking noise's share), and score it on
     the confirmation tracks (:func:`dice_sweep.measured.diagnose.fit_report`)."""
     check_outputs(("--json", json_path, JSON), ("--png", png_dir, FOLDER))
-    result, split, residual_test = loop.fit_report(_load(data_path, cfg, rate, angle), cfg, effects=effects, seed=seed)
+    trackset = _load(data_path, cfg, rate, angle)
+    result, split, residual_test = loop.fit_report(trackset, cfg, effects=effects, seed=seed)
+    result["scatter"] = _scatter_of(trackset, cfg, jsonable(result), json_path)
     if json_path:
         write_json(json_path, jsonable(result))
     if png_dir:
@@ -63,6 +76,7 @@ def run_diagnose(data_path, cfg, *, rate=None, angle="as-is", json_path=None, md
     trackset = _load(data_path, cfg, rate, angle)
     report = loop.diagnose(trackset, cfg, log=log, angle_reading=f"--angle {angle}: {trackset.angle_note}", **options)
     fits = report.pop("_fits")
+    report["scatter"] = _scatter_of(trackset, cfg, jsonable(report), json_path, log)
     if png_dir:
         _, seg_confirm = fits["segments"]
         _, confirm = fits["prepared"]

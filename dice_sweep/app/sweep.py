@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dice_sweep.chaos.measures import shannon_entropy
 from dice_sweep.config import parse_config, require_grid
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import check_executor
@@ -40,7 +41,7 @@ def draw_sweep_file(h5_path, png_path, *, box=None, dpi=150, warn: Callable[[str
     ``warn`` gets one line when some cells are not computed yet (an incomplete sweep or one
     shard); they are drawn grey as "not computed" either way. Returns ``png_path``.
     """
-    from dice_sweep.plotting import check_dpi, sweep_figure
+    from dice_sweep.plotting import check_dpi, probability_figure, sweep_figure
 
     check_dpi(dpi)
     sweep_data = read_sweep(h5_path)
@@ -48,7 +49,13 @@ def draw_sweep_file(h5_path, png_path, *, box=None, dpi=150, warn: Callable[[str
     if missing and warn is not None:
         warn(f"{h5_path}: {missing} of {sweep_data.outcome.size} cells not computed yet, drawn grey as 'not computed' "
              "(finish the sweep with --resume, or merge its shards)")
-    sweep_figure(sweep_data, diagram_title(sweep_data), box=box, dpi=dpi).savefig(png_path, dpi=dpi)
+    title = diagram_title(sweep_data)
+    if sweep_data.probability is None:
+        figure = sweep_figure(sweep_data, title, box=box, dpi=dpi)
+    else:  # a probability sweep: the most likely side shaded by its probability, and the entropy
+        entropy = np.where(sweep_data.computed, shannon_entropy(np.nan_to_num(sweep_data.probability)), np.nan)
+        figure = probability_figure(sweep_data, entropy, title, box=box, dpi=dpi)
+    figure.savefig(png_path, dpi=dpi)
     return png_path
 
 
@@ -78,6 +85,10 @@ def sweep(cfg, out_path, *, png_path=None, workers=None, shard=(0, 1), resume=Fa
     if refine_levels is not None:
         if resume or shard != (0, 1) or executor != "local":
             raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")
+        if cfg.scatter.on or cfg.scatter.draws > 1:
+            raise DiceSweepError(f"--refine: {cfg.source}: [scatter] corner = {cfg.scatter.corner:g}, flat = {cfg.scatter.flat:g}, "
+                                 f"draws = {cfg.scatter.draws}: a probability sweep is rolled in full (allowed with --refine: "
+                                 "spreads 0 and draws = 1)")
         check_levels(cfg, refine_levels)
         summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=progress, log=log)
     else:

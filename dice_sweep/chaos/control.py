@@ -14,13 +14,13 @@ import math
 
 import numpy as np
 
-from dice_sweep.chaos.measures import UNDECIDED
+from dice_sweep.chaos.measures import UNDECIDED, shannon_entropy
 from dice_sweep.config import GRID_PARAMS, PARAM_UNITS, parse_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import workers_or_default
 from dice_sweep.geometry import clear_of_surfaces
 from dice_sweep.physics.layout import STATE_COLUMNS
-from dice_sweep.mapper import Mapper, initial_states, roll_states
+from dice_sweep.mapper import Mapper, draw_streams, initial_states, roll_states
 
 BLUR_MIN_PIXELS = 2.0  # the blur needs sigma at least this many cells wide on a blurred axis
 BLUR_TRUNCATE = 4.0  # the Gaussian kernel is cut at this many sigma
@@ -104,8 +104,7 @@ class ControlMap:
     @property
     def entropy(self) -> np.ndarray:
         """float (ny, nx): outcome entropy -sum_k p_k ln p_k, nats (ln n for a fair die)."""
-        p = self.probability
-        return -np.sum(np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0), axis=0)
+        return shannon_entropy(self.probability)
 
     def summary(self) -> dict:
         """Plane-averaged numbers, JSON-ready."""
@@ -292,7 +291,9 @@ def monte_carlo_probabilities(cfg, xs, ys, sigmas, samples, *, seed=0, workers=1
     """
     sides = cfg.die.sides
     starts = scattered_starts(cfg, initial_states(cfg, xs, ys), sigmas, samples, np.random.default_rng(seed))
-    outcome = roll_states(Mapper.from_config(cfg), starts, workers)[0].astype(np.int64)
+    # with [scatter], roll k of point i on its own stream (i, k): as a probability sweep's pixel
+    streams = draw_streams(np.arange(len(xs) * len(ys)), samples) if cfg.scatter.on else None
+    outcome = roll_states(Mapper.from_config(cfg), starts, workers, streams=streams)[0].astype(np.int64)
     codes = np.where(outcome == UNDECIDED, sides, outcome).reshape(len(ys) * len(xs), samples)
     counts = np.stack([(codes == k).sum(axis=1) for k in range(sides + 1)])
     return (counts / samples).reshape(sides + 1, len(ys), len(xs))

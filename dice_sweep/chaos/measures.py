@@ -13,6 +13,10 @@ Measures of an outcome map (issue 6, docs/chaos.md):
 
 Every outcome code is a colour of its own, the undecided code -1 included: a region of
 undecided rolls is a basin of "no answer".
+
+Measures of a probability map (a sweep of M draws per pixel under the stochastic impact law,
+issue 31): the predictable share (pixels where one side has p >= 0.9), with the range the M
+draws leave it, and the basin entropy as the mean outcome entropy of the pixels (:func:`measure_probability`).
 """
 
 from __future__ import annotations
@@ -28,6 +32,9 @@ DEFAULT_BOX_SIZE = 5  # pixels per box side for Sb and Sbb, as in Daza et al. 20
 LOG2 = math.log(2.0)  # Sbb above this proves a fractal boundary (Daza et al. 2016)
 SMOOTH_BOUNDARY_SBB = 0.5  # Sbb of a smooth two-basin boundary: mean binary entropy of a uniform share
 UNDECIDED = -1
+
+PREDICTABLE_PROBABILITY = 0.9  # a pixel where one side has at least this probability is predictable
+Z95 = 1.959963984540054  # two-sided 95 % normal quantile, for the Wilson bounds of a pixel's shares
 
 # Uncertainty exponent
 EPS_POINTS = 16  # log-spaced perturbations tried, before rounding to whole pixels
@@ -418,6 +425,115 @@ def uncertainty_curve(outcome, eps=None) -> UncertaintyCurve:
     return UncertaintyCurve(eps, fraction, counts, tested, fit_power_law(eps, fraction, counts))
 
 
+# --- probability maps ---------------------------------------------------------------------
+
+
+def shannon_entropy(shares, axis=0) -> np.ndarray:
+    """-sum_k p_k ln p_k over ``axis`` (nats; 0 ln 0 = 0): ln n for n equally likely outcomes."""
+    p = np.asarray(shares, dtype=np.float64)
+    return np.maximum(-np.sum(np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0), axis=axis), 0.0)
+
+
+def wilson_bounds(share, count, z=Z95) -> tuple[np.ndarray, np.ndarray]:
+    """Wilson score bounds (low, high) of binomial shares observed in ``count`` trials (arrays)."""
+    p = np.asarray(share, dtype=np.float64)
+    centre = (p + z * z / (2 * count)) / (1 + z * z / count)
+    half = z * np.sqrt(p * (1 - p) / count + z * z / (4 * count * count)) / (1 + z * z / count)
+    return np.clip(centre - half, 0.0, 1.0), np.clip(centre + half, 0.0, 1.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class ProbabilityMeasures:
+    """What a probability map says about predictability (:func:`measure_probability`).
+
+    Attributes
+    ----------
+    draws : int
+        Rolls per pixel, M.
+    shape : tuple of int
+        (ny, nx).
+    predictable : float
+        Share of pixels whose most likely side has an estimated p >= PREDICTABLE_PROBABILITY.
+    predictable_range : tuple of float
+        (surely, possibly): the shares of pixels where some side's 95 % Wilson bound from the
+        M draws is >= PREDICTABLE_PROBABILITY, lower bound and upper bound: how far the M
+        draws leave the predictable share open.
+    entropy_map : numpy.ndarray
+        float (ny, nx): each pixel's outcome entropy over the n sides and no answer, nats.
+    basin_entropy : float
+        Mean of ``entropy_map``, nats: the basin entropy with each pixel's draws as its box.
+    basin_entropy_corrected : float
+        The same with each pixel's Miller-Madow correction, (outcomes seen - 1) / (2 M) nats:
+        the plug-in entropy of M draws is biased low by about that much.
+    no_answer : float
+        Mean share of draws without a side.
+    """
+
+    draws: int
+    shape: tuple[int, int]
+    predictable: float
+    predictable_range: tuple[float, float]
+    entropy_map: np.ndarray
+    basin_entropy: float
+    basin_entropy_corrected: float
+    no_answer: float
+
+    def to_dict(self) -> dict:
+        """The numbers, JSON-ready (without the entropy map)."""
+        return {
+            "draws": self.draws,
+            "predictable_probability": PREDICTABLE_PROBABILITY,
+            "predictable_share": self.predictable,
+            "predictable_share_range_from_draws": list(self.predictable_range),
+            "basin_entropy_nats": self.basin_entropy,
+            "basin_entropy_miller_madow_nats": self.basin_entropy_corrected,
+            "no_answer_share": self.no_answer,
+        }
+
+    def describe(self) -> str:
+        """Two lines for the user."""
+        low, high = self.predictable_range
+        return "\n".join([
+            f"probability map from {self.draws} draws per pixel: predictable (one side p >= {PREDICTABLE_PROBABILITY:g}) "
+            f"{self.predictable:.4f} of the pixels, {low:.4f} .. {high:.4f} within the draws' 95 % Wilson bounds",
+            f"basin entropy (mean outcome entropy per pixel, Daza et al. 2016) {self.basin_entropy:.4f} nats "
+            f"({self.basin_entropy_corrected:.4f} Miller-Madow corrected); no answer {self.no_answer:.4f} of the draws",
+        ])
+
+
+def measure_probability(probability, draws: int) -> ProbabilityMeasures:
+    """Predictable share and basin entropy of a probability map.
+
+    Parameters
+    ----------
+    probability : array_like of float, shape (n + 1, ny, nx)
+        Row k < n: share of a pixel's draws ending on side k; row n: share without a side
+        (as :attr:`dice_sweep.storage.SweepData.probability`).
+    draws : int
+        Draws per pixel, M.
+
+    Returns
+    -------
+    ProbabilityMeasures
+    """
+    p = np.asarray(probability, dtype=np.float64)
+    sides = p[:-1]
+    low, high = wilson_bounds(sides, draws)
+    entropy = shannon_entropy(p)
+    seen = (p > 0).sum(axis=0)
+    return ProbabilityMeasures(
+        draws=int(draws),
+        shape=p.shape[1:],
+        predictable=float((sides.max(axis=0) >= PREDICTABLE_PROBABILITY).mean()),
+        predictable_range=(float((low.max(axis=0) >= PREDICTABLE_PROBABILITY).mean()),
+                           float((high.max(axis=0) >= PREDICTABLE_PROBABILITY).mean())),
+        entropy_map=entropy,
+        basin_entropy=float(entropy.mean()),
+        basin_entropy_corrected=float((entropy + (seen - 1) / (2.0 * draws)).mean()),
+        no_answer=float(p[-1].mean()),
+    )
+
+
 # --- all measures of a map ----------------------------------------------------------------
 
 
@@ -436,6 +552,8 @@ class ChaosMeasures:
     uncertainty : UncertaintyCurve
     x_step, y_step : float or None
         Cell widths of the axes (their SI units), to state eps physically.
+    probability : ProbabilityMeasures or None
+        Of a probability map (M draws per pixel); the map measures above are then of draw 0.
     """
 
     sides: int
@@ -445,6 +563,7 @@ class ChaosMeasures:
     uncertainty: UncertaintyCurve
     x_step: float | None = None
     y_step: float | None = None
+    probability: ProbabilityMeasures | None = None
 
     def to_dict(self) -> dict:
         """All numbers, JSON-ready."""
@@ -454,6 +573,7 @@ class ChaosMeasures:
             "fractions": {("undecided" if k == UNDECIDED else str(k)): v for k, v in self.fractions.items()},
             "basin_entropy": self.entropy.to_dict(),
             "uncertainty": self.uncertainty.to_dict(self.x_step, self.y_step),
+            **({"probability": self.probability.to_dict()} if self.probability is not None else {}),
         }
 
     def describe(self) -> str:
@@ -463,9 +583,10 @@ class ChaosMeasures:
         law = "power law" if fit.power_law else "no clean power law: fit over all usable points"
         if fit.saturated:
             law = f"saturated: f > {F_SATURATED:g} already at the smallest eps"
+        draw0 = "" if self.probability is None else " (draw 0 of each pixel)"
         return "\n".join(
             [
-                f"map {self.shape[0]} x {self.shape[1]}, n = {self.sides}; undecided {self.fractions[UNDECIDED]:.4f}",
+                f"map {self.shape[0]} x {self.shape[1]}{draw0}, n = {self.sides}; undecided {self.fractions[UNDECIDED]:.4f}",
                 f"fractions: {sides}",
                 f"Sb = {entropy.sb:.4f}, Sbb = {entropy.sbb:.4f} nats on {entropy.box_size} x {entropy.box_size} boxes "
                 f"({entropy.boundary_boxes} of {entropy.boxes} on a boundary); "
@@ -473,11 +594,13 @@ class ChaosMeasures:
                 f"uncertainty exponent alpha = {fit.text()} "
                 f"({law}; eps {fit.eps_lo:g} .. {fit.eps_hi:g} pixels, {fit.points} points); "
                 f"boundary dimension {self.uncertainty.dimension:.3f}",
+                *([] if self.probability is None else [self.probability.describe()]),
             ]
         )
 
 
-def measure_map(outcome, sides, box_size=DEFAULT_BOX_SIZE, eps=None, *, x_step=None, y_step=None) -> ChaosMeasures:
+def measure_map(outcome, sides, box_size=DEFAULT_BOX_SIZE, eps=None, *, x_step=None, y_step=None, probability=None,
+                draws=1) -> ChaosMeasures:
     """Outcome fractions, Sb, Sbb and the uncertainty exponent of an outcome map.
 
     Parameters
@@ -492,6 +615,9 @@ def measure_map(outcome, sides, box_size=DEFAULT_BOX_SIZE, eps=None, *, x_step=N
         Perturbations for f(eps), pixels.
     x_step, y_step : float, optional
         Cell widths, to report eps in the axes' units.
+    probability : array_like, optional
+        (n + 1, ny, nx) shares of a probability map of ``draws`` draws per pixel
+        (:func:`measure_probability`).
 
     Returns
     -------
@@ -506,6 +632,7 @@ def measure_map(outcome, sides, box_size=DEFAULT_BOX_SIZE, eps=None, *, x_step=N
         uncertainty=uncertainty_curve(outcome, eps),
         x_step=x_step,
         y_step=y_step,
+        probability=None if probability is None else measure_probability(probability, draws),
     )
 
 

@@ -39,6 +39,7 @@ Plain numbers and arrays out; no plotting (dice_sweep.plotting draws them), no f
 layer reads the fit JSON text and writes the outputs).
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from types import SimpleNamespace
@@ -46,6 +47,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from dice_sweep import effects as registry
+from dice_sweep.config import MAX_SCATTER
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import ordered_map
 from dice_sweep.geometry import clear_of_surfaces, side_below
@@ -66,6 +68,10 @@ RELIABILITY_BINS = 10
 MIN_BOUNCE_TRACKS = 5  # a forecast point with fewer scored tracks is left out of by_bounce
 REDRAWS = 20  # times a start inside the table is drawn again before the member is dropped
 FLIGHT_TIME_MARGIN = 1e-3  # s past a flight's last frame the fit's kernel runs
+# members per selection track: they only fit the blend's weight (a comparison row), and 2000 of them
+# were 70 % of the forecast's time on the real drops
+SELECTION_MEMBERS = 250
+STREAMS_PER_BOUNCE = 10**6  # random-stream draw indices per forecast point (above any parameter draw count)
 
 
 # --- the fit a forecast samples --------------------------------------------------------------
@@ -87,6 +93,9 @@ class FitSource:
     seed: int
     data_path: object  # the data file the fit was made on, if the JSON says
     angle_reading: object
+    # the stochastic impact law's spreads written with the fit ({"corner": s, "flat": s, "corner_floor": f, ...},
+    # dice_sweep.measured.scatter), or None: the ensemble's impacts follow the fitted law exactly
+    scatter: object = None
 
     def spec(self, cfg):
         return shooting.ModelSpec.of(cfg, self.effects)
@@ -150,7 +159,33 @@ def parse_fit(data, path, cfg, confirm_fraction, seed):
     split_seed = split.get("seed", seed)
     data_path = data.get("data", {}).get("path") if isinstance(data.get("data"), dict) else None
     return FitSource(str(path), kind, extra, values, names, draws, sd, note, float(fraction), int(split_seed), data_path,
-                     data.get("angle_reading"))
+                     data.get("angle_reading"), _scatter_of(data, path))
+
+
+def _scatter_of(data, path):
+    """{"corner": s, "flat": s} from a fit JSON's ``scatter`` (None without one)."""
+    record = data.get("scatter")
+    if record is None:
+        return None
+    spreads = {}
+    for kind in ("corner", "flat"):
+        entry = record.get(kind) if isinstance(record, dict) else None
+        for key, name in (("value", kind), ("floor", f"{kind}_floor")):
+            value = entry.get(key, 0.0 if key == "floor" else None) if isinstance(entry, dict) else None
+            if value is None and isinstance(entry, dict) and entry.get("value") is None:
+                value = 0.0  # too few impacts of that kind to estimate it from
+            if not _number(value) or not 0.0 <= value <= MAX_SCATTER:
+                raise _fit_error(path, f"scatter.{kind}.{key} is not in [0, {MAX_SCATTER:g}]")
+            spreads[name] = float(value)
+    return spreads
+
+
+def scattered(cfg, spreads, seed):
+    """``cfg`` with the stochastic impact law at ``spreads`` ([scatter] keys: corner, flat and
+    their floors; None: as it is)."""
+    if not spreads:
+        return cfg
+    return dataclasses.replace(cfg, scatter=dataclasses.replace(cfg.scatter, **spreads, seed=seed))
 
 
 def _parameter_draws(data, params, names, path):
@@ -204,9 +239,10 @@ def true_states(cfg, values, states):
     return np.ascontiguousarray(state_to_true(np.asarray(states, dtype=float)))
 
 
-def roll(cfg_physical, states):
-    """(outcome, status) of the mapper on ``states`` (kernel units) to rest, in this process."""
-    rolls = Mapper.from_config(cfg_physical).roll(np.ascontiguousarray(states, dtype=np.float64))
+def roll(cfg_physical, states, streams=None):
+    """(outcome, status) of the mapper on ``states`` (kernel units) to rest, in this process;
+    ``streams`` (N, 2): each roll's random stream of the stochastic impact law."""
+    rolls = Mapper.from_config(cfg_physical).roll(np.ascontiguousarray(states, dtype=np.float64), streams=streams)
     return rolls.outcome, rolls.status
 
 
@@ -289,10 +325,11 @@ class _DrawTask:
     starts inside the table drawn again). Returns (outcome (tracks, per_draw) int8, -2 for a
     member dropped, redraws)."""
 
-    def __init__(self, cfg, spec, draws, means, factors, per_draw, seed, bounce):
+    def __init__(self, cfg, spec, draws, means, factors, per_draw, seed, bounce, scatter=None):
         self.cfg, self.spec, self.draws = cfg, spec, draws
         self.means, self.factors = means, factors
         self.per_draw, self.seed, self.bounce = per_draw, seed, bounce
+        self.scatter = scatter
 
     def __call__(self, j):
         values = self.draws[j]
@@ -312,7 +349,10 @@ class _DrawTask:
             clear[bad] = clear_starts(self.cfg, states[bad])
         outcome = np.full(len(states), -2, np.int8)
         if clear.any():
-            got, status = roll(kernel_config(self.cfg, self.spec, values), states[clear])
+            physical = scattered(kernel_config(self.cfg, self.spec, values), self.scatter, self.seed)
+            # one stream per member: (member of this draw, forecast point and parameter draw)
+            streams = np.column_stack([np.flatnonzero(clear), np.full(int(clear.sum()), self.bounce * STREAMS_PER_BOUNCE + j)])
+            got, status = roll(physical, states[clear], streams if self.scatter else None)
             outcome[clear] = np.where(status == 0, got, -1)
         return outcome.reshape(tracks, m), redraws
 
@@ -353,7 +393,7 @@ def ensemble_forecast(cfg, source, flights, observed, *, bounce, members=DEFAULT
     if flights:
         outcome, status = roll(best, true_states(cfg, source.params, means))  # also compiles before the workers fork
         deterministic = np.where(status == 0, outcome, -1).astype(np.int64)
-    task = _DrawTask(cfg, spec, draws, means, factors, per_draw, seed, bounce)
+    task = _DrawTask(cfg, spec, draws, means, factors, per_draw, seed, bounce, source.scatter)
     results = ordered_map(task, len(draws), max(1, min(workers, len(draws)))) if flights else []
     outcomes = np.concatenate([r[0] for r in results], axis=1) if results else np.zeros((len(flights), 0), np.int8)
     counts = np.stack([(outcomes == side).sum(axis=1) for side in range(n)], axis=1) if flights else np.zeros((0, n), np.int64)
@@ -453,6 +493,8 @@ def run_forecast(trackset, cfg, source, *, sigma, table=0.0, from_bounce=0, memb
     options = dict(sigma=sigma, observed=observed, members=members, param_draws=param_draws, seed=seed, workers=workers, log=log)
     held_out = forecast_bounces(confirm, cfg, source, bounces, label="held-out tracks", **options)
     select = prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    # the blend's one weight needs far fewer members than a scored forecast
+    options["members"] = min(members, SELECTION_MEMBERS)
     selection = forecast_bounces(select, cfg, source, bounces, label="selection tracks", **options) if recalibrate and select else {}
     if 0 in selection:
         release = selection[0].flights + held_out[0].flights
@@ -682,6 +724,54 @@ def score_run(run, n, seed=0, draws=BOOTSTRAP):
     return scores
 
 
+# --- which forecast to trust, and what to warn about ---------------------------------------------
+
+CALIBRATED_Z = 3.0  # |calibration z| of log and Brier at or below this: the forecast is calibrated
+AT_BOUND = 1e-6  # a fitted value within this share of its range from a bound sits at it
+
+
+def _calibrated(entry):
+    cal = entry.get("calibration") if entry else None
+    return bool(cal) and abs(cal["log_score_z"]) <= CALIBRATED_Z and abs(cal["brier_z"]) <= CALIBRATED_Z
+
+
+def headline(scores):
+    """(name, scores) of the forecast to print first: the ensemble when it is calibrated
+    (|z| <= CALIBRATED_Z for log and Brier), else the recalibrated blend when that is, else the
+    ensemble, named as not calibrated."""
+    if _calibrated(scores):
+        return "ensemble (calibrated)", scores
+    recal = scores.get("recalibrated")
+    if _calibrated(recal):
+        return f"recalibrated ensemble (w = {recal['weight_uniform']:.3f}, calibrated; the raw ensemble is not)", recal
+    return "ensemble (NOT calibrated)", scores
+
+
+def warnings(scores, source, cfg):
+    """One-line warnings: forecasts that score below the uniform one on the held-out tracks
+    (any forecast point; the ensemble, the recalibrated and the deterministic one) and fitted
+    parameters at a bound of their range."""
+    below = []
+    for b in scores.get("by_bounce", [scores]):
+        for name, skill in (("ensemble", b.get("log_skill")), ("deterministic", b.get("log_skill_deterministic")),
+                            ("recalibrated", (b.get("recalibrated") or {}).get("log_skill"))):
+            if skill and skill["value"] < 0.0:
+                below.append(f"{name} from flight {b['from_bounce']} ({skill['value']:.3f} nats)")
+    out = []
+    if below:
+        out.append("below the uniform forecast on the held-out tracks: " + ", ".join(below))
+    bounded = []
+    for name, value in source.params.items():
+        low, high = registry.param(name).bounds_of(cfg)
+        width = high - low if math.isfinite(high - low) else max(abs(low), abs(high), 1.0)
+        for side, bound in (("lower", low), ("upper", high)):
+            if math.isfinite(bound) and abs(value - bound) <= AT_BOUND * width:
+                bounded.append(f"{name} = {value:.4g} at its {side} bound")
+    if bounded:
+        out.append("fitted parameters at a bound: " + ", ".join(bounded))
+    return out
+
+
 # --- where the throws sit in the final-state map ------------------------------------------------
 
 
@@ -766,14 +856,20 @@ def markdown(report):
     scores, data, fit, ens = report["scores"], report["data"], report["fit"], report["ensemble"]
     k = scores["from_bounce"]
     n = 1.0 / scores["share_correct_uniform"]
-    lines = [
-        "# Side forecasts of tracked drops", "",
+    lines = ["# Side forecasts of tracked drops", ""]
+    if report.get("warnings"):
+        lines += ["**Warning:** " + "; ".join(report["warnings"]) + ".", ""]
+    first = report.get("headline") or headline(scores)[0]
+    lines += [
+        f"The forecast to read first: the {first}.", "",
         f"Data: {data['path']}: {data['tracks']} tracks, {data['held_out']} held out by the fit's split "
         f"({data['held_out_scored']} scored: at rest, with a first flight), {data['selection_scored']} selection tracks "
         f"for the recalibration; {data['not_at_rest']} tracks not at rest at their end are left out.", "",
         f"Fit: {fit['path']} ({fit['kind']}): effects {', '.join(fit['effects']) or 'none'}; "
         + ", ".join(f"{name} = {value:.4g}" for name, value in fit["params"].items()) + f". Parameter uncertainty: {fit['parameter_uncertainty']}."
-        + ("" if fit["same_data"] else f" The fit was made on {fit['data_path']}, not on this file: its split still decides which tracks are held out."), "",
+        + ("" if fit["same_data"] else f" The fit was made on {fit['data_path']}, not on this file: its split still decides which tracks are held out.")
+        + (" Impacts drawn from the fitted stochastic law: [scatter] " + ", ".join(f"{k} = {v:.4g}" for k, v in fit["scatter"].items()) + "."
+           if fit.get("scatter") else " Impacts: the fitted law exactly (no [scatter] in the fit)."), "",
         f"Ensemble: {ens['members']} members per track and forecast point ({ens['param_draws']} parameter draws x "
         f"{ens['state_draws_per_param_draw']} state draws), seed {ens['seed']}; tracking noise sigma x {report['noise']['sigma_x'] * 1e3:.4f} mm, "
         f"y {report['noise']['sigma_y'] * 1e3:.4f} mm, phi {report['noise']['sigma_phi'] * 1e3:.3f} mrad.", "",
@@ -784,8 +880,12 @@ def markdown(report):
     ]
     recal = scores.get("recalibrated")
     if recal:
-        lines.append(f"| recalibrated ensemble (w = {recal['weight_uniform']:.3f}) | {_ci(recal['log_score'])} | {_ci(recal['brier'])} | "
-                     f"{_pct(scores['share_correct_most_likely'])} |")
+        row = (f"| recalibrated ensemble (w = {recal['weight_uniform']:.3f}) | {_ci(recal['log_score'])} | {_ci(recal['brier'])} | "
+               f"{_pct(scores['share_correct_most_likely'])} |")
+        if first.startswith("recalibrated"):
+            lines.insert(len(lines) - 1, row)  # the calibrated forecast first
+        else:
+            lines.append(row)
     lines += [
         f"| deterministic | {_ci(scores['log_score_deterministic'])} | {_ci(scores['brier_deterministic'])} | "
         f"{_pct(scores['share_correct_deterministic'])} |",

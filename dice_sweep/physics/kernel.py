@@ -49,6 +49,8 @@ from dice_sweep.physics.params import (
     FP_INERTIA,
     FP_MU,
     FP_RHO_MAX,
+    FP_STREAM_DRAW,
+    FP_STREAM_PIXEL,
     FP_TMAX,
     FP_CONTACT_TIME,
     FP_WALL,
@@ -95,6 +97,7 @@ from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exp
     STATUS_T_MAX,
 )
 from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
+from dice_sweep.physics.scatter import scatter_impact, scatter_on
 from dice_sweep.physics.outcome import DECISION_MARGIN, barrier_height, decided_side, decision_bound, rest_height, side_below  # noqa: F401
 from dice_sweep.physics.pivot import (
     PIVOT_BALANCED,
@@ -191,11 +194,38 @@ def _set_pivot_state(s, fpar, px, chi, omega, corner):
 @numba.njit(inline="always")  # inlined: a call (four array arguments) per impact costs refcounts
 def _impact(s, fpar, ipar, surf, corner, counts):
     """Resolve one impact and tally it; returns the corner's normal velocity after (m/s)."""
+    if scatter_on(fpar):
+        return _scattered_impact(s, fpar, ipar, surf, corner, counts)
     u_n = resolve_impact(s, fpar, ipar, surf, corner, counts)
     counts[C_IMPACTS] += 1
     if surf != SURF_TABLE:
         counts[C_WALL] += 1
     return u_n
+
+
+@numba.njit(cache=True)
+def _add_scatter(s, fpar, ipar, surf, corner, vx0, vy0, w0, index, two_contacts):
+    """The stochastic law's jump (physics/scatter.py) on impact ``index`` of ``corner`` on
+    ``surf``, the velocity before it (vx0, vy0, w0); returns the corner's normal velocity
+    after (m/s)."""
+    nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
+    rx, ry = corner_vector(s, fpar, corner)
+    lx, ly = contact_lever(fpar, rx, ry, nx, ny)
+    approach = -(nx * (vx0 - w0 * ly) + ny * (vy0 + w0 * lx))
+    scatter_impact(s, fpar, ipar, lx, ly, nx, ny, corner, vx0, vy0, w0, approach, index, two_contacts)
+    return corner_normal_velocity(s, lx, ly, nx, ny)
+
+
+@numba.njit(cache=True)
+def _scattered_impact(s, fpar, ipar, surf, corner, counts):
+    """:func:`_impact` with the stochastic law: the deterministic impact, then its jump."""
+    vx0, vy0, w0 = s[3], s[4], s[5]
+    index = counts[C_IMPACTS]
+    u_n = resolve_impact(s, fpar, ipar, surf, corner, counts)
+    counts[C_IMPACTS] += 1
+    if surf != SURF_TABLE:
+        counts[C_WALL] += 1
+    return _add_scatter(s, fpar, ipar, surf, corner, vx0, vy0, w0, index, False)
 
 
 @numba.njit(inline="always")  # as a call (four array arguments) it cost 8 % of fig08's rolls
@@ -212,8 +242,11 @@ def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, count
     contact_time = fpar[FP_CONTACT_TIME]  # the flat_landing effect (0: off)
     surf_b, corner_b, arrival = second_contact(s, fpar, ipar[IP_N], n_surf, surf, corner, max(window, contact_time), tol, contact_speed)
     share = 1.0 if arrival <= window else 1.0 - arrival / max(contact_time, window)  # < 1: found by contact_time
+    vx0, vy0, w0 = s[3], s[4], s[5]  # the stochastic law scales its jump by the approach
     if corner_b < 0 or not resolve_two_contacts(s, fpar, ipar, surf, corner, surf_b, corner_b, share, counts):
         return _impact(s, fpar, ipar, surf, corner, counts), surf, corner
+    if scatter_on(fpar):
+        _add_scatter(s, fpar, ipar, surf, corner, vx0, vy0, w0, counts[C_IMPACTS], True)
     counts[C_IMPACTS] += 1
     counts[C_MULTI] += 1
     if surf != SURF_TABLE or surf_b != SURF_TABLE:
@@ -637,6 +670,18 @@ def roll_batch(fpar, ipar, states, out_outcome, out_status, out_counts, out_t):
         out_t[i] = t_decided
         for j in range(counts.shape[0]):
             out_counts[i, j] = counts[j]
+
+
+@numba.njit(cache=True)
+def roll_batch_streams(fpar, ipar, states, streams, out_outcome, out_status, out_counts, out_t):
+    """:func:`roll_batch` with the stochastic impact law's stream of row i set to
+    (seed, streams[i, 0], streams[i, 1]) = (seed, pixel, draw): integers below 2^53 as floats.
+    A row's result depends on that row and its stream only."""
+    own = fpar.copy()
+    for i in range(states.shape[0]):
+        own[FP_STREAM_PIXEL] = streams[i, 0]
+        own[FP_STREAM_DRAW] = streams[i, 1]
+        roll_batch(own, ipar, states[i:i + 1], out_outcome[i:i + 1], out_status[i:i + 1], out_counts[i:i + 1], out_t[i:i + 1])
 
 
 @numba.njit(cache=True)

@@ -40,7 +40,16 @@ FP_RHO_MAX = 10  # largest distance from the COM to a point of the die (a corner
 FP_WINDOW = 11  # contact window: contacts arriving within it are one impact, s
 FP_DRAG_TOL = 12  # x rho_max: position error allowed per Runge-Kutta step of a flight with drag
 FP_DRAG_MAX_STEP = 13  # s: longest Runge-Kutta step of a flight with drag
-N_FP_BASE = 14
+# the stochastic impact law ([scatter], physics/scatter.py): relative spreads, 0 = deterministic
+FP_SCATTER_CORNER = 14  # 1: velocity jump sd over the approach speed, landings on a corner
+FP_SCATTER_FLAT = 15  # 1: the same for landings near flat and two-contact impacts
+# a roll's random stream (integers below 2^53 stored as floats): set per roll by the batch
+FP_STREAM_SEED = 16
+FP_STREAM_PIXEL = 17
+FP_STREAM_DRAW = 18
+FP_SCATTER_CORNER_FLOOR = 19  # m/s: the jump's sd at vanishing approach speed, corner landings
+FP_SCATTER_FLAT_FLOOR = 20  # m/s: the same for flat landings
+N_FP_BASE = 21
 
 # ipar indices
 IP_N = 0  # number of sides
@@ -163,6 +172,12 @@ def pack_params(cfg):
     fpar[FP_WINDOW] = cfg.contact.window
     fpar[FP_DRAG_TOL] = DRAG_TOL
     fpar[FP_DRAG_MAX_STEP] = DRAG_MAX_STEP
+    fpar[FP_SCATTER_CORNER] = cfg.scatter.corner
+    fpar[FP_SCATTER_FLAT] = cfg.scatter.flat
+    fpar[FP_STREAM_SEED] = cfg.scatter.seed
+    speed = math.sqrt(cfg.world.g * cfg.die.circumradius)  # [scatter] floors are in sqrt(g R): each die's own speed
+    fpar[FP_SCATTER_CORNER_FLOOR] = cfg.scatter.corner_floor * speed
+    fpar[FP_SCATTER_FLAT_FLOOR] = cfg.scatter.flat_floor * speed
     _pack_derived(fpar, n, effect_registry.get_key(cfg, INERTIA_KEY))
     ipar[IP_N] = n
     ipar[IP_MODEL] = MODELS[cfg.contact.model]

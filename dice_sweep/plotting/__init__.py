@@ -43,11 +43,14 @@ from dice_sweep.plotting.maps import (  # noqa: F401
     check_box,
     draw_box,
     draw_outcome_map,
+    draw_probability_map,
     outcome_figure,
     outcome_title,
     parse_box,
     plot_comparison,
     plot_refinement,
+    probability_figure,
+    shaded_sides,
     sweep_figure,
 )
 from dice_sweep.plotting.roll import (  # noqa: F401

@@ -43,7 +43,8 @@ def plot_reliability(curves, png_path, *, title=None, dpi=100):
         y = np.array([b["observed_frequency"] for b in full])
         low = np.array([b["ci95"][0] for b in full])
         high = np.array([b["ci95"][1] for b in full])
-        ax.errorbar(x + 0.004 * k, y, yerr=[y - low, high - y], marker="o", capsize=3, label=label)
+        # clipped: a bin with no hit has a Wilson lower end a round-off above 0 (make forecast failed on it)
+        ax.errorbar(x + 0.004 * k, y, yerr=np.clip([y - low, high - y], 0.0, None), marker="o", capsize=3, label=label)
         edges = [b["p_low"] for b in bins] + [bins[-1]["p_high"]]
         counts.stairs([b["pairs"] for b in bins], edges, label=label)
     ax.set_xlim(0, 1)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.figure import Figure
 from matplotlib.patches import Rectangle
@@ -87,6 +88,42 @@ def draw_outcome_map(ax, outcome, x_values, y_values, x_label, y_label, sides, t
     return image
 
 
+def shaded_sides(probability, sides, computed=None) -> np.ndarray:
+    """RGB (ny, nx, 3) of a probability map: the colour of the most likely outcome (a side's,
+    or black for no answer) faded towards white as its probability falls from 1 to 1/(n + 1)
+    (n + 1 outcomes equally likely: white). ``probability``: (n + 1, ny, nx), row n no answer;
+    cells not ``computed`` grey."""
+    p = np.nan_to_num(np.asarray(probability, dtype=float))
+    best = np.argmax(p, axis=0)
+    colors = np.vstack([outcome_colors(sides), UNDECIDED_COLOR])[:, :3]
+    floor = 1.0 / (sides + 1)
+    strength = np.clip((p.max(axis=0) - floor) / (1.0 - floor), 0.0, 1.0)[..., None]
+    rgb = 1.0 - strength * (1.0 - colors[best])
+    if computed is not None:
+        rgb[~np.asarray(computed, dtype=bool)] = NOT_COMPUTED_COLOR[:3]
+    return rgb
+
+
+def draw_probability_map(ax, probability, x_values, y_values, x_label, y_label, sides, title=None, *, extent=None,
+                         computed=None):
+    """Draw the most likely side of each cell shaded by its probability (:func:`shaded_sides`)
+    on ``ax``, with a key of the side colours at p = 1. Arguments as :func:`draw_outcome_map`,
+    with ``probability`` (n + 1, ny, nx) instead of the outcome map."""
+    image = ax.imshow(shaded_sides(probability, sides, computed), origin="lower", interpolation="nearest", aspect="auto",
+                      extent=extent or (*cell_extent(x_values), *cell_extent(y_values)))
+    key = ListedColormap(np.vstack([UNDECIDED_COLOR, outcome_colors(sides)]))
+    colorbar = ax.figure.colorbar(ScalarMappable(BoundaryNorm(np.arange(-1.5, sides), key.N), key), ax=ax,
+                                  ticks=np.arange(-1, sides)[:: math.ceil((sides + 1) / MAX_SIDE_LABELS)])
+    colorbar.ax.set_yticklabels(["no answer" if k < 0 else f"side {k}" for k in colorbar.get_ticks().astype(int)])
+    colorbar.ax.tick_params(labelsize="small" if sides <= 12 else "x-small")
+    colorbar.set_label(f"most likely; white: p = 1/{sides + 1}", fontsize="small")
+    ax.set_xlabel(x_label)
+    ax.set_ylabel(y_label)
+    if title:
+        ax.set_title(title, fontsize="medium")
+    return image
+
+
 def draw_box(ax, box):
     """Draw the zoom rectangle ``box = (xmin, xmax, ymin, ymax)`` (Smith 2014, Figs 9, 11)."""
     xmin, xmax, ymin, ymax = box
@@ -151,6 +188,10 @@ def outcome_title(cfg, complete=True):
         extras.append(f"k = {effects.speed_restitution:g} s/m")
     if cfg.world.g != 9.81:
         extras.append(f"g = {cfg.world.g:g}")
+    if cfg.scatter.on:
+        law = cfg.scatter
+        floors = f" (floors {law.corner_floor:.3g}, {law.flat_floor:.3g} sqrt(gR))" if law.corner_floor or law.flat_floor else ""
+        extras.append(f"impacts scattered: corner {law.corner:.3g}, flat {law.flat:.3g}{floors}")
     if extras:
         title += "\n" + ", ".join(extras)
     return title if complete else f"{title} (incomplete)"
@@ -205,6 +246,24 @@ def sweep_figure(sweep, title, *, box=None, dpi=150):
         dpi=dpi,
         computed=sweep.computed,
     )
+
+
+def probability_figure(sweep, entropy, title, *, box=None, dpi=150):
+    """The final-state diagram of a probability sweep (M draws per cell): the most likely side
+    shaded by its probability beside ``entropy``, the (ny, nx) outcome entropy in nats (NaN
+    where not computed); one title over both. ``box`` is drawn on the first."""
+    if box is not None:
+        check_box(box, sweep.extent)
+    fig, (ax_side, ax_entropy) = panel_figure(2, dpi, OUTCOME_FIGSIZE)
+    axes = sweep_axes(sweep)
+    draw_probability_map(ax_side, sweep.probability, *axes, sweep.sides, extent=sweep.extent, computed=sweep.computed,
+                         title=f"most likely side, shaded by its probability ({sweep.draws} draws per cell)")
+    draw_scalar_map(ax_entropy, entropy, *axes, extent=sweep.extent, label="nats", vmin=0.0, vmax=math.log(sweep.sides + 1),
+                    cmap="magma", title=f"outcome entropy: mean {np.nanmean(entropy):.3f} nats")
+    if box is not None:
+        draw_box(ax_side, box)
+    fig.suptitle(title, fontsize="medium")
+    return fig
 
 
 def plot_comparison(sweeps, titles, png_path, *, dpi=100):

@@ -121,3 +121,23 @@ def test_outputs_are_checked_before_the_work(fig08_file, tmp_path):
     with pytest.raises(DiceSweepError, match="--json"):
         run_control(fig08_file, {"y0": 0.006}, json_path=tmp_path / "no" / "such" / "c.json")
     assert not (tmp_path / "m.json").exists()
+
+
+def test_measure_of_a_probability_sweep_reports_the_predictable_share_and_basin_entropy(tmp_path):
+    """fig08 at 16 x 16 with [scatter] draws 16: the command's numbers are those of the file's
+    shares, in its text and its JSON."""
+    cfg = load_config(CONFIGS / "fig08.toml", ["grid.x.num=16", "grid.y.num=16", "scatter.corner=0.1",
+                                               "scatter.flat=0.1", "scatter.draws=16"])
+    path = tmp_path / "p.h5"
+    small_sweep(cfg, path)
+    shares = read_sweep(path).probability
+    result = invoke("measure", path, "--json", tmp_path / "p.json")
+    assert result.exit_code == 0, result.output
+    numbers = json.loads((tmp_path / "p.json").read_text())["probability"]
+    predictable = float((shares[:-1].max(axis=0) >= 0.9).mean())
+    assert numbers["predictable_share"] == predictable and numbers["draws"] == 16
+    entropy = -np.sum(np.where(shares > 0, shares * np.log(np.where(shares > 0, shares, 1)), 0), axis=0)
+    assert numbers["basin_entropy_nats"] == pytest.approx(entropy.mean(), rel=1e-6)
+    assert 0 < numbers["basin_entropy_nats"] < math.log(5)
+    assert f"predictable (one side p >= 0.9) {predictable:.4f}" in result.output
+    assert "draw 0 of each pixel" in result.output

@@ -52,8 +52,12 @@ def test_forecast_command_writes_the_contract(drops, tmp_path):
     result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 32, "--workers", 2, "--json", out,
                     "--md", tmp_path / "f.md", "--png", tmp_path / "png", "--quiet")
     assert result.exit_code == 0, result.output
-    assert "held-out tracks: log score" in result.stdout
+    assert "held-out tracks, ensemble" in result.stdout and ": log score" in result.stdout  # the forecast to read first, named
     report = json.loads(out.read_text())
+    assert report["headline"] in result.stdout
+    # any warning is one stderr line, and the Markdown report's first paragraph
+    assert result.output.count("warning: ") == (1 if report["warnings"] else 0)
+    assert ("**Warning:**" in (tmp_path / "f.md").read_text().split("\n\n")[1]) == bool(report["warnings"])
     scores = report["scores"]
     for key in ("log_score", "log_score_uniform", "brier", "brier_uniform"):
         low, high = scores[key]["ci95"]

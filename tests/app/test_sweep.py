@@ -144,3 +144,21 @@ def test_several_files_are_drawn_side_by_side_titled_by_their_configs(tmp_path):
     assert png_size(png) == (2 * width, height)
     assert diagram_title(storage.read_sweep(half)).endswith("(incomplete)")
     assert not diagram_title(storage.read_sweep(whole)).endswith("(incomplete)")
+
+
+def test_refine_refuses_a_probability_sweep_before_any_work(cfg, tmp_path):
+    scattered = parse_config(CONFIG_TEXT + "\n[scatter]\ncorner = 0.1\ndraws = 4\n", "p.toml",
+                             overrides=["grid.x.num=8", "grid.y.num=8"])
+    with pytest.raises(DiceSweepError, match=r"--refine: p.toml: \[scatter\] corner = 0.1, flat = 0, draws = 4"):
+        quiet(scattered, tmp_path / "x.h5", refine_levels=1)
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_probability_sweep_is_drawn_as_shaded_sides_beside_its_entropy(tmp_path):
+    """Two panels (the picture twice as wide); with spreads 0 every share is 0 or 1, so the
+    left panel holds the full side colours only, no faded ones."""
+    draws = parse_config(CONFIG_TEXT + "\n[scatter]\ndraws = 4\n", "p.toml", overrides=["grid.x.num=8", "grid.y.num=8"])
+    summary, written = quiet(draws, tmp_path / "p.h5", png_path=tmp_path / "p.png", )
+    assert summary.rolls_computed == 64 * 4 and written == [tmp_path / "p.png"]
+    width, height = png_size(tmp_path / "p.png")
+    assert (width, height) == figure_pixels((2 * plotting.OUTCOME_FIGSIZE[0], plotting.OUTCOME_FIGSIZE[1]), 150)

@@ -12,6 +12,7 @@ from dice_sweep.chaos import (
     compare_control,
     control_map,
     monte_carlo_indices,
+    monte_carlo_probabilities,
     parse_sigma,
     scattered_starts,
 )
@@ -68,3 +69,17 @@ def test_parse_sigma():
     assert parse_sigma("omega0=0.5") == ("omega0", 0.5)
     with pytest.raises(DiceSweepError, match="PARAM=STD"):
         parse_sigma("omega0")
+
+
+def test_monte_carlo_with_scattered_impacts_rolls_each_point_on_its_own_streams(tmp_path):
+    """With [scatter] on and no scatter of the start, rolls of the whole grid are a probability
+    sweep: the same shares (each point's draws on its own streams, not all on one)."""
+    from dice_sweep.sweep import axis_values, run_sweep
+
+    cfg = parse_config('[scatter]\ncorner = 0.1\nflat = 0.1\ndraws = 12\n[grid]\nx = { param = "omega0", min = 0.0, '
+                       'max = 40.0, num = 4 }\ny = { param = "y0", min = 0.05, max = 0.2, num = 3 }\n', "mc.toml")
+    run_sweep(cfg, tmp_path / "p.h5", workers=1, progress=False)
+    shares = read_sweep(tmp_path / "p.h5").probability
+    rolled = monte_carlo_probabilities(cfg, axis_values(cfg.grid.x), axis_values(cfg.grid.y), {"y0": 0.0}, 12)
+    np.testing.assert_allclose(rolled, shares, rtol=0, atol=1e-6)
+    assert (shares.max(axis=0) < 1).any()  # the draws of a point differ

@@ -20,8 +20,12 @@ from dice_sweep.chaos import (
     cantor_map,
     checkerboard_map,
     fit_power_law,
+    PREDICTABLE_PROBABILITY,
     measure_map,
+    measure_probability,
     outcome_fractions,
+    shannon_entropy,
+    wilson_bounds,
     random_map_entropy,
     straight_boundary_map,
     uncertainty_curve,
@@ -183,3 +187,63 @@ def test_measure_map_joins_the_measures_and_its_json_states_eps_in_the_axes_unit
     assert "eps_x_per_pixel" not in measure_map(outcome, 2).to_dict()["uncertainty"]
     described = measures.describe()
     assert "map 200 x 200, n = 2" in described and f"alpha = {measures.uncertainty.fit.text()}" in described
+
+
+# --- probability maps (issue 31) ----------------------------------------------------------
+
+
+def shares_map(rows):
+    """(n + 1, 1, len(rows)) shares from one row of shares per pixel."""
+    return np.asarray(rows, dtype=float).T[:, None, :]
+
+
+def test_entropy_is_0_where_all_draws_agree_and_ln_k_for_k_equal_outcomes():
+    p = shares_map([[1, 0, 0, 0, 0], [0, 0, 0, 0, 1], [0.5, 0.5, 0, 0, 0], [0.2] * 5])
+    entropy = shannon_entropy(p)[0]
+    assert entropy[0] == 0.0 and entropy[1] == 0.0
+    assert entropy[2] == pytest.approx(math.log(2)) and entropy[3] == pytest.approx(math.log(5))
+
+
+def test_predictable_share_counts_sides_at_0_9_not_the_no_answer_share():
+    # p(side) 1, 0.9, 0.875 and no answer 1: only the first two are predictable
+    p = shares_map([[1, 0, 0, 0, 0], [0.9, 0.1, 0, 0, 0], [0.875, 0.125, 0, 0, 0], [0, 0, 0, 0, 1]])
+    measures = measure_probability(p, 40)
+    assert PREDICTABLE_PROBABILITY == 0.9 and measures.predictable == 0.5
+    assert measures.no_answer == 0.25 and measures.entropy_map[0, 0] == 0.0
+    assert measures.basin_entropy == pytest.approx(np.mean([0, binary_entropy(0.9), binary_entropy(0.875), 0]))
+
+
+def test_predictable_range_from_the_draws_brackets_the_share_and_narrows_with_more_draws():
+    p = shares_map([[1, 0, 0, 0, 0], [0.9, 0.1, 0, 0, 0], [0.85, 0.15, 0, 0, 0], [0.6, 0.4, 0, 0, 0]])
+    few, many = measure_probability(p, 20), measure_probability(p, 20000)
+    assert few.predictable_range[0] <= few.predictable <= few.predictable_range[1]
+    # 20 draws: p = 1 (20 of 20) is not surely >= 0.9 (Wilson low 0.84), 0.85 possibly is
+    assert few.predictable_range == (0.0, 0.75)
+    assert many.predictable_range == (0.25, 0.5)
+
+
+def test_wilson_bounds_cover_the_share_and_match_the_closed_form():
+    low, high = wilson_bounds(np.array([0.0, 0.5, 1.0]), 100)
+    assert low[0] == pytest.approx(0.0, abs=1e-12) and high[2] == pytest.approx(1.0) and low[1] < 0.5 < high[1]
+    assert high[0] == pytest.approx(3.84 / 103.84, abs=1e-3)  # z^2 / (n + z^2) at 0 hits
+
+
+def test_miller_madow_correction_adds_seen_outcomes_minus_one_over_2m():
+    p = shares_map([[0.5, 0.5, 0, 0, 0], [1, 0, 0, 0, 0]])
+    measures = measure_probability(p, 10)
+    assert measures.basin_entropy_corrected - measures.basin_entropy == pytest.approx((1 / 20 + 0) / 2)
+
+
+def test_measure_map_reports_the_probability_map_in_its_text_and_json():
+    outcome = np.zeros((12, 12), dtype=int)
+    outcome[:, 6:] = 1
+    p = np.zeros((5, 12, 12))
+    p[0, :, :6] = 1.0
+    p[1, :, 6:] = 0.5
+    p[2, :, 6:] = 0.5
+    measures = measure_map(outcome, 4, probability=p, draws=64)
+    assert measures.probability.predictable == 0.5
+    data = json.loads(json.dumps(measures.to_dict()))
+    assert data["probability"]["predictable_share"] == 0.5 and data["probability"]["draws"] == 64
+    assert "predictable (one side p >= 0.9) 0.5000" in measures.describe()
+    assert "probability" not in measure_map(outcome, 4).to_dict()

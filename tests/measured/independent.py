@@ -59,7 +59,12 @@ What is simulated
   every law); and a compliant contact of finite duration (``compliant_time``): every contact
   is then integrated in time, a spring-dashpot in compression and a spring in restitution at
   each corner in contact, with regularised Coulomb friction (:class:`_Contact`,
-  :func:`compliant_constants`), in place of the impact laws. Measurement effects: a wrong clock, a wrong length scale and an angle
+  :func:`compliant_constants`), in place of the impact laws. A stochastic impact law
+  (``scatter_corner``, ``scatter_flat``, ``scatter_floor``): after each impact a Gaussian
+  velocity jump of sd min(sqrt((sigma u)^2 + (floor sqrt(g R))^2), u) per component of
+  (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed,
+  redrawn while it gains energy or leaves the corner approaching (numpy's generator, one
+  stream per drop from ``scatter_seed`` and the release state). Measurement effects: a wrong clock, a wrong length scale and an angle
   offset, then Gaussian noise, dropped frames and one-frame glitches.
 
 What is not simulated
@@ -142,6 +147,13 @@ class Truth:
     table_tilt: float = 0.0  # rad, the table tilted: in its frame gravity is (g sin(tilt), -g cos(tilt))
     corner_beta_normal: tuple = ()  # per corner index k: the beta_normal of corner k's impacts (empty: beta_normal)
     compliant_time: float = 0.0  # s, a compliant contact of this duration replaces the impact laws (0: off)
+    # a stochastic impact law: after each impact a Gaussian velocity jump, sd scatter_* times the
+    # touching corner's approach speed per component of (vx, vy, sqrt(I/M) omega); "flat" for a
+    # landing with a side within 15 deg of the table or two corners at once (see _scatter)
+    scatter_corner: float = 0.0
+    scatter_flat: float = 0.0
+    scatter_floor: float = 0.0  # in sqrt(g R): sd = min(sqrt((scatter u)^2 + (floor sqrt(g R))^2), u), both kinds
+    scatter_seed: int = 0
 
 
 class _Die:
@@ -1039,6 +1051,39 @@ def _joining_corner(truth, die, height, speed, k):
     return best, 1.0 - delay / truth.contact_time
 
 
+SCATTER_FLAT_TILT = math.radians(15.0)  # a landing with a side this near the table is "flat"
+SCATTER_TRIES = 16  # jumps drawn before the deterministic outcome is kept
+
+
+def _scatter(truth, die, before, after, k, two, rng):
+    """``after`` with the stochastic law's jump: sd sigma u per component of (vx, vy,
+    sqrt(I) omega), u corner k's approach speed before; a jump gaining kinetic energy over
+    ``before`` or leaving corner k approaching is drawn again (SCATTER_TRIES times at most)."""
+    n = die.n
+    phi_k = before[2] + 2 * math.pi * k / n  # corner k seen from the geometric centre
+    # tilt of the lower side next to corner k: pi/n less the corner's angle from straight down
+    off = (phi_k + 0.5 * math.pi) % (2 * math.pi)
+    off = min(off, 2 * math.pi - off)
+    tilt = max(math.pi / n - off, 0.0)
+    sigma = truth.scatter_flat if (two or tilt < SCATTER_FLAT_TILT) else truth.scatter_corner
+    u = -float(die.normal_speeds(before)[k])
+    floor = truth.scatter_floor * math.sqrt(truth.g * truth.circumradius)
+    if (sigma <= 0.0 and floor <= 0.0) or u <= 0.0:
+        return after
+    size = min(math.hypot(sigma * u, floor), u)
+    root = math.sqrt(die.inertia)
+    limit = _kinetic(die, before[3:])
+    for _ in range(SCATTER_TRIES):
+        xi = rng.normal(size=3) * size
+        new = after.copy()
+        new[3] += xi[0]
+        new[4] += xi[1]
+        new[5] += xi[2] / root
+        if die.normal_speeds(new)[k] >= 0.0 and _kinetic(die, new[3:]) <= limit:
+            return new
+    return after
+
+
 def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
     """Simulate one drop from a geometric-centre state until ``t_end`` or sustained contact.
 
@@ -1060,6 +1105,8 @@ def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
     path = Path(truth)
     die = path.die
     t, s = 0.0, die.to_com(state0)
+    # the scatter's generator: fixed by the seed and the release state (one stream per drop)
+    scatter_rng = np.random.default_rng([truth.scatter_seed, *np.frombuffer(np.asarray(state0, float).tobytes(), np.uint32)])
     tol2 = SECOND_CORNER_TOL * die.radius
     while True:
         flight = _Flight(truth, t, s, t_end)
@@ -1096,6 +1143,11 @@ def simulate_path(truth, state0, t_end, *, min_bounce_speed=0.05):
             path.end = "exact_two_contacts"  # no two-contact exact Coulomb impact here: the track ends
             return path
         after, info = impact(truth, before, k, j, share)
+        if truth.scatter_corner > 0.0 or truth.scatter_flat > 0.0 or truth.scatter_floor > 0.0:
+            after = _scatter(truth, die, before, after, k, info["contacts"] == 2, scatter_rng)
+            info["u_n_after"] = float(die.normal_speeds(after)[k])
+            if j is not None:
+                info["u_n_second_after"] = float(die.normal_speeds(after)[j])
         info.update(t=tc, corner=k, second=j if info["contacts"] == 2 else None, before=before, after=after)
         path.impacts.append(info)
         arrived = info["contacts"] == 2 and share >= 1.0  # the second corner is at the table too

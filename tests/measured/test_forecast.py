@@ -220,3 +220,54 @@ def test_a_diagnose_report_is_a_fit_too():
     draws = fc.sample_params(source, cfg, 2000, np.random.default_rng(0))
     sd = np.std([d["beta_normal"] for d in draws])
     assert sd == pytest.approx(0.01 / fc.Z95, rel=0.1)
+
+
+# --- the stochastic impact law in the ensemble (issue 31) -----------------------------------------
+
+SCATTER = 0.08  # the truth's per-impact relative spread, both kinds
+PRECISE = (5e-5, 1e-3)  # a tracker as good as the real one: without the law the ensemble is overconfident
+
+
+def scattered_source(params, spreads):
+    return fc.FitSource("truth", "fit", (), params, tuple(params), None, np.zeros(len(params)), "the truth", 0.3, 0, None, None,
+                        spreads)
+
+
+@pytest.fixture(scope="module")
+def scattered_drops(tmp_path_factory):
+    truth = Truth(**TRUTH, scatter_corner=SCATTER, scatter_flat=SCATTER, scatter_seed=5)
+    return synthetic(tmp_path_factory, "scattered", truth, 160, 5, PRECISE, 500.0)
+
+
+def scattered_forecast(tracks, observed, spreads):
+    sigma = (PRECISE[0], PRECISE[0], PRECISE[1])
+    out, _, _ = fc.forecast_tracks(tracks.tracks, RIGID, scattered_source(dict(TRUTH_PARAMS), spreads), sigma=sigma, bounces=(0,),
+                                   members=500, workers=2, observed=observed)
+    return fc.score_bounce(out[0], 4, np.random.default_rng(0))
+
+
+def test_the_stochastic_law_calibrates_the_forecast_of_scattering_drops(scattered_drops):
+    """Drops whose bounces scatter: the ensemble drawn from the true stochastic law is
+    calibrated (|z| < 3, reliability within binomial bands); without the law it is not."""
+    tracks, observed = scattered_drops
+    s = scattered_forecast(tracks, observed, {"corner": SCATTER, "flat": SCATTER})
+    assert s["n_tracks"] >= 100
+    assert abs(s["calibration"]["log_score_z"]) < 3 and abs(s["calibration"]["brier_z"]) < 3, s["calibration"]
+    for b in s["reliability"]:
+        if b["pairs"] >= 30:
+            assert abs(b["observed_frequency"] - b["mean_predicted"]) < 3 * b["calibrated_sd"] + 0.02, b
+    exact = scattered_forecast(tracks, observed, None)
+    assert exact["calibration"]["log_score_z"] < -5  # the same drops forecast by the exact law: overconfident
+    assert fc.headline(s)[0].startswith("ensemble (calibrated)")
+
+
+def test_warnings_name_forecasts_below_uniform_and_parameters_at_a_bound():
+    scores = {"from_bounce": 0, "log_skill": {"value": 0.1}, "log_skill_deterministic": {"value": -2.0},
+              "recalibrated": {"log_skill": {"value": 0.02}}}
+    source = scattered_source({"beta_normal": 1.0, "beta_tangential": 0.0, "friction": 0.5}, None)
+    lines = fc.warnings({**scores, "by_bounce": [scores]}, source, RIGID)
+    assert len(lines) == 2
+    assert "deterministic from flight 0" in lines[0] and "ensemble" not in lines[0]
+    assert "beta_normal = 1 at its upper bound" in lines[1]
+    quiet = scattered_source({"beta_normal": 0.4, "beta_tangential": 0.0, "friction": 0.5}, None)
+    assert fc.warnings({"by_bounce": [{**scores, "log_skill_deterministic": {"value": 0.5}}]}, quiet, RIGID) == []

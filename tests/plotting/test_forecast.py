@@ -37,6 +37,13 @@ def test_reliability_diagram_puts_each_bin_at_its_predicted_and_observed_frequen
     assert rising(left, FIRST)  # from (0.1, 0.12) up to (0.85, 0.8)
 
 
+def test_a_bin_with_no_hit_is_drawn(tmp_path):
+    """Its Wilson interval's lower end is a round-off above 0 (make forecast crashed on it)."""
+    empty = {"p_low": 0.0, "p_high": 0.1, "pairs": 3, "mean_predicted": 0.095, "observed_frequency": 0.0, "ci95": (1e-17, 0.56)}
+    png = plotting.plot_reliability([("ensemble", [empty, bin_of(0.2, 0.6, 30, 0.4, 0.45)])], tmp_path / "r.png", dpi=50)
+    assert png.exists()
+
+
 def skill_block(k, value):
     entry = lambda v: {"value": v, "ci95": (v - 0.05, v + 0.05)} if v is not None else None
     return {"from_bounce": k, "log_skill": entry(value), "log_skill_deterministic": entry(None),

@@ -121,6 +121,11 @@ def test_title_names_every_effect_that_is_on():
     first, second = plotting.outcome_title(cfg).split("\n")
     assert first.startswith("n = 4, beta_normal = ")
     assert second == "rigid model, mu = 0.5, drag 0.02/m, loaded (0.001, 0) m, k = 0.1 s/m, g = 3.7"
+    scattered = config.parse_config("[scatter]\ncorner = 0.0458\nflat = 0.0938\ndraws = 4\n")
+    assert plotting.outcome_title(scattered).split("\n")[1] == "impacts scattered: corner 0.0458, flat 0.0938"
+    assert "\n" not in plotting.outcome_title(config.parse_config("[scatter]\ndraws = 4\n"))
+    floored = config.parse_config("[scatter]\ncorner = 0.03\ncorner_floor = 0.12\nflat_floor = 0.05\n")
+    assert plotting.outcome_title(floored).endswith("corner 0.03, flat 0 (floors 0.12, 0.05 sqrt(gR))")
 
 
 def test_comparison_draws_each_sweep_in_its_own_panel(tmp_path):
@@ -153,3 +158,19 @@ def test_refinement_picture_has_the_map_and_the_levels(tmp_path):
     viridis = matplotlib.colormaps["viridis"]
     assert np.mean(near(region, viridis(1.0), tol=0.05)) == pytest.approx(0.25, abs=0.05)  # level 3 of 3: yellow
     assert np.mean(near(region, viridis(0.0), tol=0.05)) == pytest.approx(0.75, abs=0.05)
+
+
+def test_shaded_sides_fade_the_most_likely_colour_to_white_at_equal_shares():
+    colors = plotting.outcome_colors(4)[:, :3]
+    p = np.zeros((5, 1, 4))
+    p[2, 0, 0] = 1.0  # side 2 sure
+    p[:, 0, 1] = 0.2  # five outcomes equally likely: white
+    p[1, 0, 2], p[3, 0, 2] = 0.6, 0.4  # side 1 at 0.6: half way to white
+    p[4, 0, 3] = 1.0  # never a side: black
+    rgb = plotting.shaded_sides(p, 4, computed=np.array([[True, True, True, True]]))
+    np.testing.assert_allclose(rgb[0, 0], colors[2])
+    np.testing.assert_allclose(rgb[0, 1], 1.0)
+    np.testing.assert_allclose(rgb[0, 2], 1.0 - 0.5 * (1.0 - colors[1]))
+    np.testing.assert_allclose(rgb[0, 3], 0.0)
+    grey = plotting.shaded_sides(p, 4, computed=np.array([[False, True, True, True]]))[0, 0]
+    np.testing.assert_allclose(grey, plotting.NOT_COMPUTED_COLOR[:3])
