@@ -393,6 +393,8 @@ def ensemble_forecast(cfg, source, flights, observed, *, bounce, members=DEFAULT
     if flights:
         outcome, status = roll(best, true_states(cfg, source.params, means))  # also compiles before the workers fork
         deterministic = np.where(status == 0, outcome, -1).astype(np.int64)
+        if source.scatter:  # and the stochastic law's batch, which the workers roll
+            roll(scattered(best, source.scatter, seed), true_states(cfg, source.params, means[:1]), np.zeros((1, 2)))
     task = _DrawTask(cfg, spec, draws, means, factors, per_draw, seed, bounce, source.scatter)
     results = ordered_map(task, len(draws), max(1, min(workers, len(draws)))) if flights else []
     outcomes = np.concatenate([r[0] for r in results], axis=1) if results else np.zeros((len(flights), 0), np.int8)

@@ -221,3 +221,30 @@ def test_a_fit_file_that_is_not_text_is_a_one_line_error(tmp_path):
     with pytest.raises(DiceSweepError, match="not JSON"):
         read_fit_file(tmp_path / "binary.json", load_config(SQUARE))
 
+
+
+def test_a_parameter_at_a_bound_and_a_scatter_law_are_reported(drops, tmp_path):
+    """Issue 31: a fitted parameter at its bound is one stderr warning line and the report's
+    first paragraph; the fit's [scatter] law is read and named."""
+    data, _ = drops
+    params = {"beta_normal": {"value": 0.2, "ci95": [0.19, 0.21]}, "beta_tangential": {"value": -1.0, "ci95": [-1.0, -0.99]}}
+    scatter = {"corner": {"value": 0.05, "floor": 0.1}, "flat": {"value": 0.08, "floor": 0.0}}
+    fit = fit_json(tmp_path / "bound.json", draws=False, params=params, scatter=scatter)
+    out = tmp_path / "f.json"
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 0, "--workers", 2, "--json", out,
+                    "--md", tmp_path / "f.md", "--quiet")
+    assert result.exit_code == 0, result.output
+    lines = [line for line in result.output.splitlines() if line.startswith("warning: ")]
+    assert len(lines) == 1 and "beta_tangential = -1 at its lower bound" in lines[0], result.output
+    report = json.loads(out.read_text())
+    assert report["fit"]["scatter"] == {"corner": 0.05, "corner_floor": 0.1, "flat": 0.08, "flat_floor": 0.0}
+    first = (tmp_path / "f.md").read_text().split("\n\n")[1]
+    assert first.startswith("**Warning:**") and "at its lower bound" in first
+
+
+def test_a_scatter_law_out_of_range_is_a_one_line_error(drops, tmp_path):
+    data, _ = drops
+    fit = fit_json(tmp_path / "bad.json", scatter={"corner": {"value": 3.0}, "flat": {"value": 0.1}})
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json")
+    assert result.exit_code == 2 and "scatter.corner.value is not in [0, 1]" in result.output
+    assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "f.json").exists()
