@@ -186,7 +186,7 @@ def roll(config, overrides, as_json, png_path, gif_path):
     from dice_sweep.app.roll import roll as roll_command
 
     report, _ = roll_command(_load(config, overrides), overrides, png_path=png_path, gif_path=gif_path)
-    click.echo(json.dumps(report.to_dict()) if as_json else _describe_roll(report))
+    click.echo(json.dumps(report.to_dict(), allow_nan=False) if as_json else _describe_roll(report))  # never NaN: not JSON
 
 
 def _describe_roll(report):

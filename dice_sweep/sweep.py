@@ -535,6 +535,8 @@ def merge_parts(part_paths: Sequence, out_path) -> SweepSummary:
     with contextlib.ExitStack() as stack:
         parts = [stack.enter_context(SweepFile.open(part_path)) for part_path in part_paths]
         _check_parts(parts)
+        for part in parts:
+            part.check_values()
         header = dataclasses.replace(parts[0].header, shard=(0, 1))
         tiles = TileGrid(header.shape, header.tile_shape)
         with create_whole(path, header, tiles.count) as merged:

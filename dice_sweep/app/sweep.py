@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dice_sweep.config import parse_config, require_grid
+from dice_sweep.config import check_computable, parse_config, require_grid
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import check_executor
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
@@ -40,7 +40,7 @@ def draw_sweep_file(h5_path, png_path, *, box=None, dpi=150, warn: Callable[[str
     ``warn`` gets one line when some cells are not computed yet (an incomplete sweep or one
     shard); they are drawn grey as "not computed" either way. Returns ``png_path``.
     """
-    from dice_sweep.plotting import check_dpi, sweep_figure
+    from dice_sweep.plotting import check_dpi, save_figure, sweep_figure
 
     check_dpi(dpi)
     sweep_data = read_sweep(h5_path)
@@ -48,7 +48,7 @@ def draw_sweep_file(h5_path, png_path, *, box=None, dpi=150, warn: Callable[[str
     if missing and warn is not None:
         warn(f"{h5_path}: {missing} of {sweep_data.outcome.size} cells not computed yet, drawn grey as 'not computed' "
              "(finish the sweep with --resume, or merge its shards)")
-    sweep_figure(sweep_data, diagram_title(sweep_data), box=box, dpi=dpi).savefig(png_path, dpi=dpi)
+    save_figure(sweep_figure(sweep_data, diagram_title(sweep_data), box=box, dpi=dpi), png_path, dpi)
     return png_path
 
 
@@ -75,6 +75,7 @@ def sweep(cfg, out_path, *, png_path=None, workers=None, shard=(0, 1), resume=Fa
     from dice_sweep.sweep import run_sweep
 
     require_grid(cfg)
+    check_computable(cfg)
     if refine_levels is not None:
         if resume or shard != (0, 1) or executor != "local":
             raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")

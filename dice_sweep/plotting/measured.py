@@ -8,6 +8,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from dice_sweep.plotting.common import save_figure
+
 
 
 def plot_residual_curves(curves, png_path, *, dpi=100, bin_width=0.008):
@@ -41,7 +43,7 @@ def plot_residual_curves(curves, png_path, *, dpi=100, bin_width=0.008):
     ax.set_xlabel("time from the first impact (s)")
     ax.set_ylabel("pose error sqrt(dx^2 + dy^2 + (R dphi)^2) (mm)")
     ax.legend(fontsize="small")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
 
 
@@ -91,5 +93,5 @@ def plot_calibration(result, png_path, *, dpi=120, bins=40):
         ax.set_xlabel(name)
         ax.set_ylabel("impacts")
     fig.suptitle(f"{Path(result.path).name}: coefficients per impact", fontsize="medium")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
