@@ -61,8 +61,11 @@ class _Commands(click.Group):
             _usage_error(ctx, error)
 
     def invoke(self, ctx):
+        from dice_sweep.outputs import together
+
         try:
-            return super().invoke(ctx)
+            with together():  # a command's files appear together once it succeeds, or none does
+                return super().invoke(ctx)
         except click.UsageError as error:
             _usage_error(ctx, error)
         except (DiceSweepError, OSError) as error:

@@ -7,6 +7,7 @@ runs rather than after it. Imports nothing heavy: the image formats come from
 """
 
 import contextlib
+import contextvars
 import json
 import os
 import shutil
@@ -120,14 +121,18 @@ _UMASK = os.umask(0o022)
 os.umask(_UMASK)  # read once: mkstemp makes files 0600, an output gets the usual 0666 & ~umask
 
 
+_PENDING = contextvars.ContextVar("pending_outputs", default=None)  # the renames :func:`together` holds back
+
+
 @contextlib.contextmanager
-def written(path, *, replace=True):
+def written(path, *, replace=True, defer=True):
     """Yield a temporary path in the folder of ``path``, ending as ``path`` does (matplotlib,
     Pillow and numpy choose the format by the name); when the block ends, rename it to
     ``path``: the whole file or nothing. On any error the temporary is removed; an OSError
     (a full disk, say) becomes one :func:`write_error` line naming ``path``. With
     ``replace=False`` an existing ``path`` is never replaced (the rename is a hard link).
-    The one way every command writes a file (issue 32)."""
+    Inside :func:`together` the rename waits for the end of that block (unless ``defer`` is
+    False: a file read back at once). The one way every command writes a file (issue 32)."""
     path = Path(path)
     try:
         handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=PARTIAL + _ending(path))
@@ -135,17 +140,47 @@ def written(path, *, replace=True):
         raise write_error(path, error) from None
     os.close(handle)
     temporary = Path(name)
+    pending = _PENDING.get() if defer else None
     try:
         yield temporary
-        os.chmod(temporary, 0o666 & ~_UMASK)
-        if replace:
-            os.replace(temporary, path)
-        else:
-            os.link(temporary, path)
+        if pending is not None:
+            pending.append((temporary, path, replace))
+            return
+        _rename(temporary, path, replace)
     except OSError as error:
         raise write_error(path, error) from None
     finally:
-        temporary.unlink(missing_ok=True)
+        if pending is None or (temporary, path, replace) not in pending:
+            temporary.unlink(missing_ok=True)
+
+
+def _rename(temporary: Path, path: Path, replace: bool) -> None:
+    os.chmod(temporary, 0o666 & ~_UMASK)
+    if replace:
+        os.replace(temporary, path)
+    else:
+        os.link(temporary, path)
+        temporary.unlink()
+
+
+@contextlib.contextmanager
+def together():
+    """Hold back the renames of the files :func:`written` inside the block until it ends
+    without error, so that a command's outputs appear together or not at all (a full disk at
+    its last picture leaves no report that looks complete without it)."""
+    pending = []
+    token = _PENDING.set(pending)
+    try:
+        yield
+        for temporary, path, replace in pending:
+            try:
+                _rename(temporary, path, replace)
+            except OSError as error:
+                raise write_error(path, error) from None
+    finally:
+        _PENDING.reset(token)
+        for temporary, _, _ in pending:
+            temporary.unlink(missing_ok=True)
 
 
 def replace_atomically(path, write):

@@ -495,7 +495,7 @@ def _new_file(path, header: SweepHeader, n_tiles: int):
     if os.path.lexists(path):
         raise DiceSweepError(f"{path}: cannot create (it exists)")
     image = _empty_file_image(header, n_tiles)
-    with written(path, replace=False) as temporary:
+    with written(path, replace=False, defer=False) as temporary:  # read back at once: never held back
         temporary.write_bytes(image)
         yield temporary
 
