@@ -417,6 +417,7 @@ def run_sweep(
     done = np.zeros(tiles.count, dtype=bool)
     if resuming:
         with SweepFile.open(path) as existing:
+            existing.check_values()  # its tiles are kept as they are: no side the die does not have
             _check_resumable(path, existing.header, header)
             if existing.complete:
                 return summary(0, True, already_complete=True)
