@@ -83,7 +83,7 @@ MAX_SIDES = 127  # sides are stored as int8 (docs/hdf5.md): 0..126 and -1, -128 
 MAX_GRID_NUM = 100_000  # cells per axis; keeps the start check's arrays (and sweeps) finite
 MIN_CIRCUMRADIUS = 1e-9  # m; a smaller die underflows its moment of inertia per R^2 (1e-308 divided by zero)
 MAX_EVENTS = 2**62  # events (fixed_step: steps) of one roll; the kernel counts them in int64
-# What a roll or sweep may ask of the kernel (issue 32, docs/config.md "Limits of a roll"):
+# What a roll or sweep may ask of the kernel (issue 32, docs/physics.md "Limits of a roll"):
 MAX_ROLL_WORK = 10**8  # events (fixed_step: steps, t_max / dt) one roll may take: a minute of a core at worst
 MAX_TABLE_SPEED = 1000.0  # m/s, sqrt(vx0^2 + vy0^2 + (omega0 R)^2 + 2 g y0): far past any throw, well inside float64
 # a start whose corner reaches this far into a surface still counts as touching it, not inside

@@ -70,6 +70,8 @@ def issue32_io_cases():
     FIFOs and devices as inputs. Kept in one block, apart from the cases of items 4-6."""
     import atexit
     import json
+    sys.path.insert(0, str(Path(C).parent))
+    from tests.helpers import replace_dataset as replace
     X = T / "io32"
     X.mkdir()
     # -- item 2: sweep files that do not fit docs/hdf5.md, drawn, merged, measured, controlled, served
@@ -79,13 +81,6 @@ def issue32_io_cases():
         with h5py.File(path, "r+") as h5:
             change(h5)
         return str(path)
-    def replace(h5, name, data):
-        attrs = {k: v for k, v in h5[name].attrs.items() if k not in ("DIMENSION_LIST", "_FillValue")}
-        for dim in h5[name].dims:
-            for scale in list(dim.values()):
-                dim.detach_scale(scale)
-        del h5[name]
-        h5.create_dataset(name, data=data).attrs.update(attrs)
     def cell(name, value):
         def change(h5):
             values = h5[name][...]
@@ -177,7 +172,7 @@ def issue32_io_cases():
                        (["roll", f"{C}/table1.toml", "--png"], "r.png"), (["simulate-drops", f"{C}/square_drops.toml", "--tracks", "3", "-o"], "d.csv"),
                        (["calibrate", D, "--config", f"{C}/square_drops.toml", "--json"], "c.json"), (["measure", G, "--json"], "m.json"),
                        (["control", G, "--sigma", "y0=0.01", "-o"], "c.npz"), (["control", G, "--sigma", "y0=0.01", "--json"], "c.json"),
-                       (["forecast", D, "--config", f"{C}/square_drops.toml", "--fit", fit("good"), "--members", "1000", "--map-size", "0", "--json"], "f.json")]:
+                       (["forecast", D, "--config", f"{C}/square_drops.toml", "--fit", fit("good"), "--members", "1000", "--map-size", "0", "--quiet", "--json"], "f.json")]:
         text, out = full(name)
         add(*args, text, out=out)
 

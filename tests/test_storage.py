@@ -28,7 +28,7 @@ from dice_sweep.storage import (
     read_sweep,
     rolls_to_maps,
 )
-from tests.helpers import corrupt_first_chunk
+from tests.helpers import corrupt_first_chunk, replace_dataset
 
 DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs" / "hdf5.md"
 GOLDEN = pathlib.Path(__file__).resolve().parent / "golden"
@@ -409,15 +409,6 @@ def forged(tmp_path, change):
     with h5py.File(path, "r+") as h5:
         change(h5)
     return path
-
-
-def replace_dataset(h5, name, data):
-    attrs = {key: value for key, value in h5[name].attrs.items() if key not in ("DIMENSION_LIST", "_FillValue")}
-    for dim in h5[name].dims:
-        for scale in list(dim.values()):
-            dim.detach_scale(scale)
-    del h5[name]
-    h5.create_dataset(name, data=data).attrs.update(attrs)
 
 
 def set_cell(name, value):
