@@ -588,8 +588,8 @@ class SweepFile:
             values = np.asarray(axis.values)
             if (values.ndim != 1 or values.size == 0 or values.dtype.kind != "f" or not np.isfinite(values).all()
                     or not np.all(np.diff(values) > 0) or not (np.isfinite(axis.lo) and np.isfinite(axis.hi) and axis.lo < axis.hi)):
-                raise self._invalid(f"/{axis.param}", f"{values.size} values from {values.min(initial=np.inf):g} to "
-                                    f"{values.max(initial=-np.inf):g} in [{axis.lo:g}, {axis.hi:g}]",
+                span = f" from {values.min():g} to {values.max():g}" if values.dtype.kind == "f" and values.size else ""
+                raise self._invalid(f"/{axis.param}", f"{values.size} {values.dtype} values{span} in [{axis.lo:g}, {axis.hi:g}]",
                                     "finite, strictly increasing cell centres, and finite min < max")
         (shard_index, shard_count), tile_shape = header.shard, header.tile_shape
         if not 0 <= shard_index < shard_count:
