@@ -172,15 +172,34 @@ def together():
     token = _PENDING.set(pending)
     try:
         yield
-        for temporary, path, replace in pending:
+        for temporary, path, replace in (entry for entry in pending if entry[0] is not None):
             try:
                 _rename(temporary, path, replace)
             except OSError as error:
                 raise write_error(path, error) from None
+        pending.clear()
     finally:
         _PENDING.reset(token)
-        for temporary, _, _ in pending:
-            temporary.unlink(missing_ok=True)
+        for temporary, path, _ in reversed(pending):
+            if temporary is not None:
+                temporary.unlink(missing_ok=True)
+            elif path.is_dir() and not any(path.iterdir()):
+                path.rmdir()  # a picture folder the failed command made, left empty
+
+
+def make_folder(path) -> Path:
+    """Create the folder ``path`` (and missing parents) for a command's pictures; inside
+    :func:`together`, one it created is removed again, if empty, when the command fails."""
+    path = Path(path)
+    missing = [folder for folder in (path, *path.parents) if not folder.exists()]
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise write_error(path, error) from None
+    pending = _PENDING.get()
+    if pending is not None:
+        pending.extend((None, folder, False) for folder in reversed(missing))
+    return path
 
 
 def replace_atomically(path, write):

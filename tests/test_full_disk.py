@@ -103,3 +103,13 @@ def test_a_disk_that_fills_mid_sweep_stops_cleanly_and_the_sweep_resumes(disk, t
     assert resumed.complete
     for name, values in reference.maps.items():
         np.testing.assert_array_equal(resumed.maps[name], values, err_msg=name)
+
+
+def test_a_disk_full_at_the_last_picture_leaves_no_report_without_it(disk, inputs):
+    """Room for measure's JSON but not its pictures: neither the JSON (which would look like a
+    finished run) nor the picture folder the command made is left."""
+    fill(disk, 16_384)
+    result = cli("measure", inputs / "whole.h5", "--json", disk / "m.json", "--png", disk / "pictures")
+    assert result.returncode == 2 and result.stderr.count("\n") == 1, result.stderr
+    assert result.stderr.startswith(f"error: {disk}/pictures/") and "No space left on device" in result.stderr, result.stderr
+    assert sorted(path.name for path in disk.iterdir()) == ["ballast"]

@@ -10,7 +10,7 @@ import pytest
 
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.outputs import (CSV, FOLDER, HDF5_SPARE, JSON, NPZ, SWEEP_FILE, check_outputs, check_space, replace_atomically, write_json,
-                                written)
+                                make_folder, together, written)
 
 
 @pytest.mark.parametrize(
@@ -160,3 +160,20 @@ def test_check_space_refuses_what_the_disk_cannot_hold(tmp_path, monkeypatch):
                                              rf"{HDF5_SPARE + 10} needed .*; resume later"):
         check_space(tmp_path / "a.h5", 10, "; resume later")
     check_space(tmp_path / "a.h5", 9)
+
+
+def test_together_renames_every_file_at_the_end_or_none(tmp_path):
+    with together():
+        replace_atomically(tmp_path / "a.json", lambda file: file.write(b"{}"))
+        assert not (tmp_path / "a.json").exists()  # held back until the command succeeds
+        make_folder(tmp_path / "png" / "deep")
+        write_json(tmp_path / "png" / "deep" / "b.json", [1])
+    assert (tmp_path / "a.json").read_text() == "{}" and json.loads((tmp_path / "png" / "deep" / "b.json").read_text()) == [1]
+    failed = tmp_path / "failed"
+    failed.mkdir()
+    with pytest.raises(DiceSweepError, match="c.md: cannot be written: No space left on device"):
+        with together():
+            write_json(failed / "report.json", {"complete": True})
+            make_folder(failed / "pictures")
+            replace_atomically(failed / "c.md", full_disk)
+    assert list(failed.iterdir()) == []  # no lone report that looks complete, no empty picture folder

@@ -19,7 +19,7 @@ from dice_sweep.measured.checks import check_measured
 from dice_sweep.measured.report import jsonable
 from dice_sweep.measured.split import CONFIRM_FRACTION
 from dice_sweep.measured.tracks import load_tracks
-from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
+from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, make_folder, replace_atomically, write_json
 
 MAP_SIZE = 512  # cells per axis of the release map: docs/chaos.md measures its maps at 512 x 512
 MAP_SIZES = (16, 2048)  # --map-size (0: no map)
@@ -159,7 +159,7 @@ def draw_pictures(report, picture, folder, sides):
     """reliability.png, skill_by_bounce.png and (with a map) release_map.png in ``folder``."""
     from dice_sweep.plotting import plot_release_map, plot_reliability, plot_skill_by_bounce
 
-    folder.mkdir(parents=True, exist_ok=True)
+    make_folder(folder)
     scores = report["scores"]
     k = scores["from_bounce"]
     curves = [("ensemble", scores["reliability"])]

@@ -10,7 +10,7 @@ from dice_sweep.measured.calibrate import CalibrationResult, calibrate
 from dice_sweep.measured.report import jsonable, markdown_report, parse_effects, residual_curves
 from dice_sweep.measured.checks import check_measured
 from dice_sweep.measured.tracks import load_tracks
-from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
+from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, make_folder, replace_atomically, write_json
 from dice_sweep.plotting import image_formats, plot_calibration, plot_residual_curves
 
 __all__ = ["run_calibrate", "run_fit", "run_diagnose", "parse_effects"]  # fit's --effects parser too
@@ -37,7 +37,7 @@ def run_calibrate(data_path, cfg, *, rate=None, angle="as-is", gaps="auto", json
 
 def _residual_pictures(residuals, prepared, segments, png_dir):
     """The residual picture: per-frame pose error against time from the first impact."""
-    png_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(png_dir)
     path = png_dir / "residual_error_vs_time.png"
     plot_residual_curves(residual_curves(residuals, prepared, segments), path)
     return [str(path)]
