@@ -4,6 +4,10 @@ Every command that writes calls :func:`check_outputs` first, so that a path that
 written is one line naming the option, the path and what is allowed, before a sweep or a fit
 runs rather than after it. Imports nothing heavy: the image formats come from
 :func:`dice_sweep.plotting.image_formats`, asked for only by commands that draw.
+
+Then every file is written the same way (issue 32): under a temporary name beside it, renamed
+once complete (:func:`written`), a command's files together once it succeeds (:func:`together`),
+a full disk one line naming the file; HDF5 writes check the space first (:func:`check_space`).
 """
 
 import contextlib
