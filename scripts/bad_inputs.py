@@ -71,7 +71,7 @@ def issue32_io_cases():
     import atexit
     import json
     sys.path.insert(0, str(Path(C).parent))
-    from tests.helpers import replace_dataset as replace
+    from tests.helpers import replace_dataset as replace, set_first
     X = T / "io32"
     X.mkdir()
     # -- item 2: sweep files that do not fit docs/hdf5.md, drawn, merged, measured, controlled, served
@@ -81,16 +81,10 @@ def issue32_io_cases():
         with h5py.File(path, "r+") as h5:
             change(h5)
         return str(path)
-    def cell(name, value):
-        def change(h5):
-            values = h5[name][...]
-            values[0, 0] = value
-            h5[name][...] = values
-        return change
     forged = {
         "shape": lambda h5: replace(h5, "outcome", np.zeros((3, 5), np.int8)),
         "float": lambda h5: replace(h5, "outcome", h5["outcome"][...].astype(np.float32)),
-        "fifty": cell("outcome", 50), "minus128": lambda h5: (cell("outcome", -128)(h5), cell("status", 0)(h5)),
+        "fifty": set_first("outcome", 50), "minus128": lambda h5: (set_first("outcome", -128)(h5), set_first("status", 0)(h5)),
         "sides0": lambda h5: h5.attrs.__setitem__("sides", 0), "sides500": lambda h5: h5.attrs.__setitem__("sides", 500),
         "same_axes": lambda h5: h5.attrs.__setitem__("x_param", h5.attrs["y_param"]),
         "axis_inf": lambda h5: h5["omega0"].__setitem__(3, np.inf),

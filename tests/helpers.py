@@ -109,6 +109,15 @@ def replace_dataset(h5, name, data):
     h5.create_dataset(name, data=data).attrs.update(attrs)
 
 
+def set_first(name, value):
+    """A change (for an open h5py file) that puts ``value`` in the first cell of dataset ``name``."""
+    def change(h5):
+        values = h5[name][...]
+        values.flat[0] = value
+        h5[name][...] = values
+    return change
+
+
 # --- pictures -----------------------------------------------------------------------------
 
 

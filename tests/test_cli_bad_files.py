@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tests.helpers import CONFIGS, run_cli, small_sweep
+from tests.helpers import CONFIGS, run_cli, set_first, small_sweep
 
 DEMO = str(CONFIGS / "demo.toml")
 TABLE1 = str(CONFIGS / "table1.toml")
@@ -31,14 +31,6 @@ def good(tmp_path_factory):
     path = tmp_path_factory.mktemp("bad_files") / "good.h5"
     small_sweep(load_config(DEMO, ["grid.x.num=16", "grid.y.num=16"]), path)
     return path
-
-
-def set_first(name, value):
-    def change(h5):
-        values = h5[name][...]
-        values.flat[0] = value
-        h5[name][...] = values
-    return change
 
 
 FORGED = {  # name -> (change, key, fragment)

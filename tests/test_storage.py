@@ -28,7 +28,7 @@ from dice_sweep.storage import (
     read_sweep,
     rolls_to_maps,
 )
-from tests.helpers import corrupt_first_chunk, replace_dataset
+from tests.helpers import corrupt_first_chunk, replace_dataset, set_first
 
 DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs" / "hdf5.md"
 GOLDEN = pathlib.Path(__file__).resolve().parent / "golden"
@@ -411,14 +411,6 @@ def forged(tmp_path, change):
     return path
 
 
-def set_cell(name, value):
-    def change(h5):
-        values = h5[name][...]
-        values[0, 0] = value
-        h5[name][...] = values
-    return change
-
-
 def set_axis(h5, value):
     values = h5["vx0"][...]
     values[2] = value
@@ -428,8 +420,8 @@ def set_axis(h5, value):
 FORGED = {  # change -> (key, fragment of the one line)
     "outcome of the wrong shape": (lambda h5: replace_dataset(h5, "outcome", np.zeros((2, 5), np.int8)), "/outcome", "shape (2, 5)"),
     "float outcomes": (lambda h5: replace_dataset(h5, "outcome", np.zeros((3, 5), np.float32)), "/outcome", "float32"),
-    "outcome 50 on a five-sided die": (set_cell("outcome", 50), "/outcome", "50 in a computed cell (row 0, column 0)"),
-    "outcome -128 in a computed cell": (lambda h5: (set_cell("outcome", -128)(h5), set_cell("status", 0)(h5)), "/outcome", "-128"),
+    "outcome 50 on a five-sided die": (set_first("outcome", 50), "/outcome", "50 in a computed cell (row 0, column 0)"),
+    "outcome -128 in a computed cell": (lambda h5: (set_first("outcome", -128)(h5), set_first("status", 0)(h5)), "/outcome", "-128"),
     "sides 0": (lambda h5: h5.attrs.__setitem__("sides", 0), "sides", "0 sides"),
     "sides 200": (lambda h5: h5.attrs.__setitem__("sides", 200), "sides", "an integer 3 to 127"),
     "x axis equal to the y axis": (lambda h5: h5.attrs.__setitem__("x_param", "y0"), "y_param", "also the x axis"),
