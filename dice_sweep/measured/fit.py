@@ -198,6 +198,34 @@ class Segments:
         self.track_segment_starts = np.searchsorted(self.track, np.arange(self.tracks + 1))
         self.guess = np.array(guess).reshape(-1, 6)
 
+    def subset(self, keep):
+        """The segments where ``keep`` (bool, per segment) holds, as their own Segments: tracks
+        with none kept are left out and the rest renumbered in order; ``frame_rows`` keep the
+        frame numbering of the whole (cross-fitting and the consistency test fit parts of one
+        set of tracks and put their states and residuals back in place)."""
+        keep = np.asarray(keep, dtype=bool)
+        out = object.__new__(Segments)
+        rows = keep[self.segment_rows]
+        kept_tracks = np.unique(self.track[keep])
+        renumber = np.full(self.tracks, -1, dtype=np.int64)
+        renumber[kept_tracks] = np.arange(kept_tracks.size)
+        lengths = np.diff(self.starts)[keep]
+        out.count = int(keep.sum())
+        out.tracks = int(kept_tracks.size)
+        out.track = renumber[self.track[keep]]
+        out.starts = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)
+        out.times = self.times[rows]
+        out.measured = self.measured[rows]
+        out.predicted = self.predicted[rows]
+        out.track_rows = renumber[self.track_rows[rows]]
+        out.frame_rows = self.frame_rows[rows]
+        out.frames = self.frames
+        out.segment_rows = np.repeat(np.arange(out.count), lengths)
+        out.track_starts = np.searchsorted(out.track_rows, np.arange(out.tracks + 1))
+        out.track_segment_starts = np.searchsorted(out.track, np.arange(out.tracks + 1))
+        out.guess = self.guess[keep]
+        return out
+
 
 def _physical(values):
     """The ``values`` (name -> value) the kernel reads: measurement effects are maps of the

@@ -107,7 +107,12 @@ def parse_fit(data, path, cfg, confirm_fraction, seed):
     errors for a JSON that is not a fit, or a fit of another die or model."""
     if not isinstance(data, dict):
         raise _fit_error(path, "not a JSON object")
-    if isinstance(data.get("after"), dict) and "effects_added" in data:
+    if isinstance(data.get("held_out_model"), dict) and "effects_added" in data:
+        # a cross-fitted diagnose (issue 30): its named model saw every track; fold 0's model did
+        # not see the half its split holds out
+        data = {**data, **{key: data["held_out_model"][key] for key in ("bootstrap_draws", "split") if key in data["held_out_model"]}}
+        kind, params, effects = "diagnose (held-out fold)", data["held_out_model"].get("params"), data["held_out_model"].get("effects")
+    elif isinstance(data.get("after"), dict) and "effects_added" in data:
         kind, params, effects = "diagnose", data["after"].get("params"), data["after"].get("effects")
     elif "params" in data and "effects" in data:
         kind, params, effects = "fit", data["params"], data["effects"]

@@ -33,8 +33,8 @@ def jsonable(value):
 
 
 def residual_by_bounce(cfg, fits):
-    """RMS error (m) of the confirmation tracks' frames predicted through impact k (k = 1, 2,
-    ...), before and after, with the number of tracks; and the same by landing tilt."""
+    """RMS error (m) of the held-out tracks' frames predicted through impact k (k = 1, 2, ...),
+    before and after, with the number of tracks; and the same by landing tilt."""
     seg_confirm = fits["segments"][1]
     out = []
     residuals = fits["confirm_residuals"]
@@ -124,10 +124,33 @@ def _params_table(params):
 def _round_table(label, results):
     lines = [f"| {label} | held-out error | median held-out | z | share of excess | null excluded | at bound | added |",
              "|---|---|---|---|---|---|---|---|"]
-    for c in results:
+    for c in results:  # (the tracks each makes worse and better are in the JSON: worse_tracks, better_tracks)
         lines.append(f"| {c['effect']} | {_mm(c['test_error'])} | {_mm(c['median_error'])} | {c['z']:.2f} | {c['excess_share']:.0%} | "
                      f"{'yes' if c['null_excluded'] else 'no'} | {', '.join(c['at_bound']) or '-'} | {'yes' if c['accepted'] else 'no'} |")
     return lines
+
+
+def _presence(signature):
+    state = {True: "present", False: "absent", None: "not measured"}[signature["present_before"]]
+    return state + ("" if signature["counts"] else " (does not count)")
+
+
+def _z(value):
+    return "n/a" if value is None or not math.isfinite(value) else f"z = {value:.2f}"
+
+
+def _proposal_lines(report):
+    proposals = report.get("proposals") or []
+    if not proposals:
+        return []
+    lines = ["## Proposals: formulas for what the final model leaves", "",
+             "Sparse formulas fitted to the residual the final model leaves (terms, not effects of the library; "
+             f"{report.get('proposals_note', '')}).", "",
+             "| target | terms [95 % interval] | held-out gain |", "|---|---|---|"]
+    for p in proposals:
+        terms = ", ".join(f"`{t}` {v:+.4g} [{p['ci95'][t][0]:+.4g}, {p['ci95'][t][1]:+.4g}]" for t, v in p["terms"].items())
+        lines.append(f"| `{p['target']}` ({p.get('unit', '')}) | {terms} | {p['heldout_gain']:.2f} |")
+    return lines + [""]
 
 
 def markdown_report(report):
@@ -141,13 +164,32 @@ def markdown_report(report):
              f"Metric: {report['metric']}.", "", f"Selection: {report['selection']}.", ""]
     data = report["data"]
     noise = report["noise"]
-    lines += [f"Data: {data['path']}: {data['tracks']} tracks at {data['rate_hz']:g} Hz; {data['selection_tracks']} selection tracks "
-              f"({data['selection_flights']} flights) and {data['confirmation_tracks']} confirmation tracks ({data['confirmation_flights']} flights) usable; "
+    spread = report.get("verdict_spread", {})
+    if "usable_tracks" in data:
+        used = f"{data['usable_tracks']} usable ({data['flights']} flights) in {data['cross_folds']} cross-fitting folds"
+    else:  # a report of the loop before cross-fitting (issue 30)
+        used = (f"{data['selection_tracks']} selection tracks ({data['selection_flights']} flights) and {data['confirmation_tracks']} "
+                f"confirmation tracks ({data['confirmation_flights']} flights) usable")
+    lines += [f"Data: {data['path']}: {data['tracks']} tracks at {data['rate_hz']:g} Hz; {used}; "
               f"{data['glitch_frames']} glitch frames excluded, {data['gap_frames']} dropped frames re-inserted.", "",
               f"Angle: {report['angle_reading']}", "",
               f"Tracking noise (free flights): sigma x {noise['sigma_x'] * 1e3:.4f} mm, y {noise['sigma_y'] * 1e3:.4f} mm, "
-              f"phi {noise['sigma_phi'] * 1e3:.3f} mrad; noise floor {_mm(floor)} (95 % {_interval(noise['pose_ci95'])}).", "",
-              "## Before and after, on confirmation tracks", "",
+              f"phi {noise['sigma_phi'] * 1e3:.3f} mrad; noise floor {_mm(floor)} (95 % {_interval(noise['pose_ci95'])}).", ""]
+    if spread:
+        lines += [f"Verdict over re-splits: {', '.join(spread['verdicts'])} ({'all agree' if spread['agree'] else 'they differ'}; "
+                  f"{spread['method']}).", ""]
+    effects = report.get("effects", {})
+    if effects:
+        lines += ["## Cause or stand-in", "", "| effect | called | failed | comparisons (split: parameter z) | signature before |",
+                  "|---|---|---|---|---|"]
+        for name, entry in effects.items():
+            c = entry["consistency"]
+            tests = "; ".join(f"{x['split']}: {x['param']} {_z(x['z'])}" for x in c["comparisons"]) or "no parameter"
+            sig = c["signature"]
+            lines.append(f"| {name} | {entry['cause']} | {'; '.join(c['failed']) or '-'} | {tests} | "
+                         f"{sig['name'] or 'none'}: {_presence(sig)} |")
+        lines.append("")
+    lines += ["## Before and after, every track held out (cross-fitting)", "",
               "| model | effects | RMS over tracks | 95 % interval | x floor | median track | 95 % interval | x floor |",
               "|---|---|---|---|---|---|---|---|"]
     for label in ("baseline", "after"):
@@ -156,26 +198,41 @@ def markdown_report(report):
                      f"{entry['multiple_of_floor']:.1f} | {_mm(entry['median_error'])} | {_interval(entry['median_ci95'])} | "
                      f"{entry['median_multiple_of_floor']:.1f} |")
     lines += ["", f"Verdict rule: {report['verdict_rule']}."]
+    worst = report.get("worst_tracks")
+    if worst:
+        lines += ["", "Worst tracks (held-out error):", "", "| before: track | before | after | | after: track | after | before |",
+                  "|---|---|---|---|---|---|---|"]
+        for b, a in zip(worst["before"], worst["after"]):
+            lines.append(f"| {b['traj']} | {_mm(b['before'])} | {_mm(b['after'])} | | {a['traj']} | {_mm(a['after'])} | {_mm(a['before'])} |")
     lines += ["", "## Parameters after", ""] + _params_table(report["after"]["params"])
     lines += ["", "## Rounds", ""]
-    for k, rnd in enumerate(report["rounds"], 1):
-        lines += [f"Round {k}: threshold z = {rnd['threshold_z']:.2f} (Sidak bound {rnd['sidak_z']:.2f}, {rnd['null_simulations']} null simulations).", ""]
+    for fold in report.get("folds", []):
+        lines.append(f"Fold {fold['fold'] + 1}: chosen on {fold['chosen_on_tracks']} tracks, predicts {fold['held_out_tracks']}; added "
+                     f"{', '.join(fold['effects_added']) or 'nothing'}; its held-out median {_mm(fold['held_out']['baseline']['median_error'])} "
+                     f"-> {_mm(fold['held_out']['after']['median_error'])}.")
+    lines.append("")
+    numbers = {}
+    for rnd in report["rounds"]:
+        k = numbers[rnd.get("fold")] = numbers.get(rnd.get("fold"), 0) + 1
+        where = f"Fold {rnd['fold'] + 1}, round {k}" if rnd.get("fold") is not None else f"Round {k}"
+        lines += [f"{where}: threshold z = {rnd['threshold_z']:.2f} (Sidak bound {rnd['sidak_z']:.2f}, {rnd['null_simulations']} null simulations).", ""]
         lines += _round_table("effect", rnd["candidates"])
         if rnd.get("pairs"):
             lines += ["", f"No single effect passed; pairs fitted together (threshold z = {rnd['pair_threshold_z']:.2f}):", ""]
             lines += _round_table("effects", rnd["pairs"])
         lines.append("")
     if report.get("by_bounce"):
-        lines += ["## Error by impact (confirmation tracks, frames predicted through impact k)", "",
+        lines += ["## Error by impact (held-out tracks, frames predicted through impact k)", "",
                   "| impact | tracks | before | after |", "|---|---|---|---|"]
         lines += [f"| {b['impact']} | {b['tracks']} | {_mm(b['baseline'])} | {_mm(b['after'])} |" for b in report["by_bounce"]]
         lines.append("")
     if report.get("by_tilt"):
-        lines += ["## Error by landing tilt (confirmation tracks, frames predicted through an impact; 0 deg = flat)", "",
+        lines += ["## Error by landing tilt (held-out tracks, frames predicted through an impact; 0 deg = flat)", "",
                   "| tilt | impacts | tracks | before | after |", "|---|---|---|---|---|"]
         lines += [f"| {b['tilt_deg'][0]:.0f}-{b['tilt_deg'][1]:.0f} deg | {b['impacts']} | {b['tracks']} | {_mm(b['baseline'])} | {_mm(b['after'])} |"
                   for b in report["by_tilt"]]
         lines.append("")
+    lines += _proposal_lines(report)
     lines += ["## Residual signatures after", "", "| signature | value | 95 % interval | unit | points to | meaning |", "|---|---|---|---|---|---|"]
     for s in report["signatures"]:
         value = "n/a" if s["value"] is None else f"{s['value']:.4g}"

@@ -6,6 +6,7 @@ each trajectory id and the seed (:meth:`dice_sweep.measured.tracks.TrackSet.spli
 ``forecast`` from either command's JSON scores the same confirmation tracks (:func:`fit_context`).
 """
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,6 +72,81 @@ def split_tracks(trackset, cfg, confirm_fraction=CONFIRM_FRACTION, seed=0, *, ro
         )
     return Split(table, noise, sigma, select_set, confirm_set, select, confirm,
                  shooting.Segments(select, cfg.world.g), shooting.Segments(confirm, cfg.world.g))
+
+
+CROSS_FOLDS = 2  # cross-fitting folds of diagnose (more when the tracks are too few for halves)
+MAX_CROSS_FOLDS = 5
+
+
+@dataclass
+class CrossFit:
+    """All usable tracks of one file, in folds for cross-fitting (:func:`cross_fit_tracks`):
+    fold k's model is chosen and fitted on the other folds' tracks and predicts fold k's."""
+
+    table: float  # m, the table's height in the file
+    noise: dict  # :func:`dice_sweep.measured.noise.noise_floor`'s dict
+    sigma: np.ndarray  # sigmas of x, y (m) and phi (rad)
+    trackset: TrackSet
+    prepared: list  # PreparedTrack of every track with a usable first flight
+    segments: shooting.Segments  # of all of them
+    fold: np.ndarray  # fold of each prepared track
+    folds: int
+    g: float  # m/s^2, the config's (the segments' ballistic guesses)
+    file_halves: bool = False  # the folds are TrackSet.split(0.5, seed)'s halves, fold 0 held out
+
+    def part(self, k):
+        """Fold k as (training prepared tracks, their Segments, their TrackSet, bool mask of the
+        held-out tracks (over ``prepared``), the held-out tracks' Segments)."""
+        test = self.fold == k
+        train = [p for p, held in zip(self.prepared, test) if not held]
+        held = [p for p, h in zip(self.prepared, test) if h]
+        g = self.g
+        return (train, shooting.Segments(train, g), self.trackset.with_trajs(p.traj for p in train), test,
+                shooting.Segments(held, g))
+
+
+def cross_fit_folds(count, folds=CROSS_FOLDS):
+    """Folds for ``count`` tracks: ``folds``, or more when the training part of a fold would
+    hold fewer than MIN_TRACKS tracks; None when even MAX_CROSS_FOLDS folds leave too few."""
+    k = folds
+    while k <= MAX_CROSS_FOLDS:
+        if count - math.ceil(count / k) >= MIN_TRACKS:
+            return k
+        k += 1
+    return None
+
+
+def cross_fit_tracks(trackset, cfg, seed=0, folds=CROSS_FOLDS):
+    """Measure the tracking noise, prepare every track and put the usable ones in folds
+    (balanced, by a hash of the trajectory id and the seed: :func:`assign_folds`).
+
+    Raises
+    ------
+    DiceSweepError
+        When too few tracks have a first free flight of ``fit.MIN_FLIGHT_FRAMES`` frames for
+        every fold's training part to hold MIN_TRACKS tracks.
+    """
+    table, noise, sigma = tracking_noise(trackset, cfg)
+    prepared = shooting.prepare_tracks(trackset, cfg, noise=sigma, table=table)
+    count = cross_fit_folds(len(prepared), folds)
+    if count is None:
+        least = next(n for n in range(MIN_TRACKS, 10 * MIN_TRACKS) if cross_fit_folds(n, folds))
+        raise DiceSweepError(
+            f"{trackset.path}: tracks: {len(prepared)} tracks have a first free flight of {shooting.MIN_FLIGHT_FRAMES} frames or more "
+            f"(allowed: at least {least}, so that every cross-fitting fold is chosen on {MIN_TRACKS} or more; "
+            f"{len(trackset.tracks)} tracks in the file)")
+    file_halves = False
+    if count == 2:
+        # halves as TrackSet.split(0.5, seed) makes them, its held-out half fold 0: a
+        # ``forecast`` of diagnose's held_out_model (fold 0's, chosen on fold 1) scores the
+        # tracks that model never saw; balanced halves when the unusable tracks leave a side short
+        held = {track.traj for track in trackset.split(0.5, seed)[1].tracks}
+        fold = np.array([0 if p.traj in held else 1 for p in prepared], dtype=np.int64)
+        file_halves = min(int(np.sum(fold == 0)), int(np.sum(fold == 1))) >= MIN_TRACKS
+    if not file_halves:
+        fold = assign_folds(prepared, count, f"cross:{seed}")
+    return CrossFit(table, noise, sigma, trackset, prepared, shooting.Segments(prepared, cfg.world.g), fold, count, cfg.world.g,
+                    file_halves)
 
 
 def assign_folds(prepared, count, seed):

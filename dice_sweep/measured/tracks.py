@@ -168,6 +168,11 @@ class TrackSet:
         train = tuple(track for i, track in enumerate(self.tracks) if i not in held_out)
         return self._with_tracks(train), self._with_tracks(test)
 
+    def with_trajs(self, trajs):
+        """A copy holding only the tracks whose trajectory id is in ``trajs`` (file order kept)."""
+        wanted = set(trajs)
+        return self._with_tracks(tuple(track for track in self.tracks if track.traj in wanted))
+
     def _with_tracks(self, tracks):
         """A copy holding only ``tracks``, with the glitch tallies recounted."""
         flagged = [int(np.count_nonzero(track.glitch)) for track in tracks]

@@ -11,7 +11,6 @@ from matplotlib.figure import Figure
 from dice_sweep.plotting.common import save_figure
 
 
-
 def plot_residual_curves(curves, png_path, *, dpi=100, bin_width=0.008):
     """Median and 90th percentile of the per-frame pose error against time from the first
     impact, one colour per fit (measured-data reports).
@@ -41,8 +40,10 @@ def plot_residual_curves(curves, png_path, *, dpi=100, bin_width=0.008):
         ax.plot(centres, upper, linestyle="--", color=line.get_color(), label=f"{label} (90th percentile)")
     ax.axvline(0.0, color="grey", linewidth=0.8)
     ax.set_xlabel("time from the first impact (s)")
-    ax.set_ylabel("pose error sqrt(dx^2 + dy^2 + (R dphi)^2) (mm)")
-    ax.legend(fontsize="small")
+    ax.set_ylabel("pose error (mm)\nsqrt(dx^2 + dy^2 + (R dphi)^2)")
+    # outside the axes: with every track held out (cross-fitting) the curves fill the axes, and
+    # a legend inside covered the line at the first impact
+    fig.legend(loc="outside lower center", ncols=4, fontsize="small")
     save_figure(fig, png_path, dpi)
     return Path(png_path)
 

@@ -2,7 +2,9 @@
 which shares no code with the kernel): each library effect alone, none (several splits), two at
 once, two effects outside the library, 4x the tracking noise, flat_landing on drops that
 start near flat (its own starts, so not in LIBRARY_CASES), a loaded die under a friction rule
-the config lacks, and a second draw of the new contact physics naming the same effects.
+the config lacks, a second draw of the new contact physics naming the same effects, and (issue
+30) the same verdict from two draws of the same physics, causes and stand-ins, and the JSON
+contract of verdict_spread, cause and proposals.
 
 The default suite runs a few of these; all of them run with ``make test-measured``
 (``pytest -m slow tests/measured``), minutes on two cores.
@@ -41,13 +43,41 @@ def run_loop(tmp_path, truth, declared=DECLARED_RIGID, *, seed=1, noise=NOISE, t
 
 def assert_named_effects_are_away_from_null(report, cfg):
     """Every run: an effect the report names has a final 95 % interval that excludes its null
-    (one component for a vector effect), and a removed one is not named."""
+    (one component for a vector effect), and one removed from the named model is not named;
+    each fold's steps still kept a significant gain in that fold's final model; the contract of
+    issue 30 holds."""
     for name in report["effects_added"]:
         own = [p.name for p in registry.effect(name).params]
         assert not own or any(null_excluded(n, report["params"][n]["ci95"], cfg) for n in own), (name, report["params"])
-    assert not {r["effect"] for r in report["effects_removed"]} & set(report["effects_added"])
+    assert not {r["effect"] for r in report["effects_removed"] if r["fold"] is None} & set(report["effects_added"])
     for step in report["chain"]:  # and each step still named keeps a significant gain in the final model
         assert step["removed"] or step["final_z"] > step["threshold_z"], step
+    assert_contract(report)
+
+
+def assert_contract(report):
+    """verdict_spread, cause and consistency of each named effect, proposals (issue 30, item 6)."""
+    spread = report["verdict_spread"]
+    assert spread["verdicts"][0] == report["verdict"] and len(spread["verdicts"]) == 4
+    assert set(spread["verdicts"]) <= {"explained", "improved", "unexplained"}
+    assert set(report["effects"]) == set(report["effects_added"])
+    for name, entry in report["effects"].items():
+        assert entry["cause"] in ("cause", "stand_in")
+        assert {"test", "passed", "comparisons", "signature", "failed"} <= set(entry["consistency"])
+        assert entry["consistency"]["passed"] == (entry["cause"] == "cause")
+    if any(e["cause"] == "stand_in" for e in report["effects"].values()):
+        assert report["verdict"] != "explained"
+    for p in report["proposals"]:
+        assert {"target", "terms", "ci95", "heldout_gain"} <= set(p) and set(p["terms"]) == set(p["ci95"])
+    if report["after"]["median_multiple_of_floor"] <= 1.5:
+        assert report["proposals"] == []
+    worst = report["worst_tracks"]
+    assert len(worst["before"]) == len(worst["after"]) == min(5, report["data"]["usable_tracks"])
+    assert worst["before"][0]["before"] == max(w["before"] for w in worst["before"])
+
+
+def causes(report):
+    return {name: entry["cause"] for name, entry in report["effects"].items()}
 
 
 def covers(report, name, value):
@@ -137,6 +167,11 @@ def test_a_flight_effect_is_named_and_measured(tmp_path):
     report = _check_library_case(tmp_path, "air_drag")
     assert report["verdict"] == "explained"
     assert report["after"]["test_error"] < report["baseline"]["test_error"]
+    # the same drag on the two halves of the tracks and on first and later flights (seed 1:
+    # 0.797 and 0.804, z = -1.2; 0.799 and 0.801, z = -0.3), and the deceleration was in the
+    # declared model's residual: a cause
+    assert causes(report) == {"air_drag": "cause"}, report["effects"]
+    assert set(report["verdict_spread"]["verdicts"]) == {"explained"}
 
 
 # Measured misses of the 95 % intervals on these sets (the effect named right, the values a few
@@ -224,18 +259,19 @@ FLAT_LANDING_DECLARED = DECLARED_RIGID.replace("beta_normal = 0.3", "beta_normal
 
 @pytest.mark.slow
 def test_an_effect_back_near_its_null_is_not_named(tmp_path):
-    # flat landings with a contact time of 5e-4 s: angle_offset is added in round 1 at 0.013 rad
-    # (z = 3.59; the flat_landing candidate ends at 1.3e-4 s with an interval that holds 0), and
-    # the later rounds' refits bring it to 0.0036 [0.0015, 0.0056] rad: clear of 0, but its
-    # gain in the final model is z = 0.95 against the 2.49 it passed. Before the final checks
-    # the report named it. (Earlier versions of the loop, and this one since the fit's damping
-    # floor, brought it back inside its interval, 0.0024 [-0.0006, 0.0053] rad then: the other
-    # final check takes it out.) flat_landing is not found here.
+    # flat landings with a contact time of 5e-4 s: on the 70 % selection tracks of the loop
+    # before cross-fitting, angle_offset was added in round 1 at 0.013 rad (z = 3.59; the
+    # flat_landing candidate ended at 1.3e-4 s with an interval that holds 0), and the later
+    # rounds' refits brought it to 0.0036 [0.0015, 0.0056] rad: clear of 0, but its gain in the
+    # final model z = 0.95 against the 2.49 it passed; the final checks took it out. On each
+    # cross-fitting half a fold may add it and take it out again, or not add it at all: either
+    # way it is not named, and the drops are not explained.
     report = run_loop(tmp_path, dict(TRUTH, contact_time=5e-4), starts=FLAT_LANDING_STARTS)
-    assert [r["effect"] for r in report["effects_removed"]] == ["angle_offset"]
     assert "angle_offset" not in report["effects_added"] and "angle_offset" not in report["params"]
-    assert report["chain"][0]["removed"] == ["angle_offset"]
-    assert report["verdict"] == "unexplained"
+    for step in report["chain"]:
+        if "angle_offset" in step["effects"]:
+            assert step["removed"] == ["angle_offset"]
+    assert report["verdict"] != "explained"
 
 
 def test_an_effect_is_away_from_its_null_by_its_intervals():
@@ -266,9 +302,50 @@ def test_flat_landing_truth_declared_is_explained(tmp_path):
 @pytest.mark.parametrize("outside", [{"spin_damping": 3.0}, pytest.param({"magnus": 0.1}, marks=pytest.mark.slow)])
 def test_physics_outside_the_library_is_unexplained(tmp_path, outside):
     report = run_loop(tmp_path, dict(TRUTH, **outside))
-    assert report["effects_added"] == []
+    assert set(causes(report).values()) <= {"stand_in"}, report["effects"]  # nothing named a cause
     assert report["verdict"] == "unexplained"
     assert report["signatures_remaining"]
+    assert report["proposals"]  # a formula for what is left
+
+
+# Issue 30: two draws of one physics get one verdict (before cross-fitting, two draws of 36
+# drops with inertia 0.8 of eq. 25's got `explained` at 1.56 times the floor and `unexplained`
+# at 6.2 times, each from its 11 confirmation tracks). Inertia is in the library now: seeds 1
+# and 2 name it a cause (0.8006 and 0.8011 on the two halves of seed 1, z = -0.7), median
+# 0.99 and 1.05 times the floor. A compliant contact of 0.5 ms is not: seed 1 names
+# table_offset, seed 2 table_offset and g, each a stand-in (first against later flights:
+# table_offset -1.29 against -0.20 mm, z = -8.8; z = -6.7 and -5.0 on seed 2), so no cause:
+# `unexplained` both times, with a formula proposed for what is left.
+SAME_PHYSICS = {"inertia": ({"inertia": 0.8}, "explained"), "compliant": ({"compliant_time": 5e-4}, "unexplained")}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", list(SAME_PHYSICS))
+def test_the_same_physics_drawn_twice_gets_the_same_verdict(tmp_path, case):
+    physics, verdict = SAME_PHYSICS[case]
+    reports = [run_loop(tmp_path, dict(TRUTH, **physics), seed=seed) for seed in (1, 2)]
+    assert [r["verdict"] for r in reports] == [verdict, verdict], [
+        (r["verdict"], causes(r), r["after"]["median_multiple_of_floor"]) for r in reports]
+    for report in reports:
+        if case == "inertia":
+            assert causes(report) == {"inertia": "cause"}, report["effects"]
+        else:
+            assert set(causes(report).values()) <= {"stand_in"}, report["effects"]
+            assert report["proposals"]
+
+
+@pytest.mark.slow
+def test_drag_standing_in_for_a_tilted_table_is_called_a_stand_in(tmp_path):
+    """A table tilted by 3 degrees (outside the library): both folds add air_drag, whose value
+    agrees on every split (the flights moving towards +x put it at its bound 0 with a wide
+    interval), but the named model leaves flight.x_acc ~ 1 at g sin 3 deg: a stand-in, and the
+    verdict names no cause (scripts/cause_calibration.py, seeds 1 and 2)."""
+    report = run_loop(tmp_path, dict(TRUTH, table_tilt=math.radians(3.0)))
+    assert set(causes(report).values()) <= {"stand_in"}, report["effects"]
+    assert report["verdict"] == "unexplained"
+    constant = {p["target"]: p for p in report["proposals"]}["flight.x_acc"]
+    low, high = constant["ci95"]["1"]
+    assert low <= 9.81 * math.sin(math.radians(3.0)) * 1.02 and high >= 9.81 * math.sin(math.radians(3.0)) * 0.98, constant
 
 
 @pytest.fixture(scope="module")
@@ -279,7 +356,7 @@ def four_times_the_noise(tmp_path_factory):
 @pytest.mark.slow
 def test_four_times_the_noise(four_times_the_noise):
     report = four_times_the_noise
-    usable = report["data"]["selection_tracks"] + report["data"]["confirmation_tracks"]
+    usable = report["data"]["usable_tracks"]
     assert usable >= 0.9 * TRACKS
     assert report["effects_added"][:1] == ["air_drag"]
     assert report["params"]["air_drag"]["value"] == pytest.approx(0.8, rel=0.05)
