@@ -110,8 +110,11 @@ class _Commands(click.Group):
             _usage_error(ctx, error)
 
     def invoke(self, ctx):
+        from dice_sweep.outputs import together
+
         try:
-            return super().invoke(ctx)
+            with together():  # a command's files appear together once it succeeds, or none does
+                return super().invoke(ctx)
         except click.UsageError as error:
             _usage_error(ctx, error)
         except (DiceSweepError, OSError) as error:
@@ -252,7 +255,7 @@ def roll(config, overrides, as_json, png_path, gif_path):
     from dice_sweep.app.roll import roll as roll_command
 
     report, _ = roll_command(_load(config, overrides), overrides, png_path=png_path, gif_path=gif_path)
-    click.echo(json.dumps(report.to_dict()) if as_json else _describe_roll(report))
+    click.echo(json.dumps(report.to_dict(), allow_nan=False) if as_json else _describe_roll(report))  # never NaN: not JSON
 
 
 def _describe_roll(report):

@@ -41,6 +41,7 @@ import numpy as np
 from dice_sweep import effects as effect_registry
 from dice_sweep import geometry
 from dice_sweep.errors import ConfigError
+from dice_sweep.inputs import not_a_file
 
 __all__ = [
     "Die",
@@ -63,6 +64,7 @@ __all__ = [
     "load_config",
     "parse_config",
     "require_grid",
+    "check_computable",
     "cell_centres",
     "config_to_toml",
     "default_config",
@@ -85,6 +87,9 @@ MAX_SIDES = 127  # sides are stored as int8 (docs/hdf5.md): 0..126 and -1, -128 
 MAX_GRID_NUM = 100_000  # cells per axis; keeps the start check's arrays (and sweeps) finite
 MIN_CIRCUMRADIUS = 1e-9  # m; a smaller die underflows its moment of inertia per R^2 (1e-308 divided by zero)
 MAX_EVENTS = 2**62  # events (fixed_step: steps) of one roll; the kernel counts them in int64
+# What a roll or sweep may ask of the kernel (issue 32, docs/physics.md "Limits of a roll"):
+MAX_ROLL_WORK = 10**8  # events (fixed_step: steps, t_max / dt) one roll may take: a minute of a core at worst
+MAX_TABLE_SPEED = 1000.0  # m/s, sqrt(vx0^2 + vy0^2 + (omega0 R)^2 + 2 g y0): far past any throw, well inside float64
 # a start whose corner reaches this far into a surface still counts as touching it, not inside
 TOUCH_TOLERANCE = 1e-12  # relative to the circumradius
 # Contact window (s): a real die's contact lasts about 1e-4 s (docs/physics.md), and a window
@@ -536,7 +541,13 @@ def _grid(raw_grid, checker):
         values = checker.values(table, ("grid", name), _AXIS_SPECS)
         if values["min"] >= values["max"]:
             raise checker.error(f"grid.{name}.max", f"{values['max']!r} is not above min = {values['min']!r} (allowed range: max > min)")
-        axes[name] = Axis(**values)
+        axis = Axis(**values)
+        centres = axis.values()
+        if not (np.isfinite(centres).all() and np.all(np.diff(centres) > 0)):
+            raise checker.error(f"grid.{name}", f"the {axis.num} cell centres from min = {axis.min!r} to max = {axis.max!r} are not "
+                                "finite, distinct numbers (allowed: max - min finite, below 1.8e308, and cells wider than the "
+                                "spacing of floats)")
+        axes[name] = axis
     if axes["x"].param == axes["y"].param:
         others = [param for param in GRID_PARAMS if param != axes["x"].param]
         raise checker.error("grid.y.param", f"{axes['y'].param!r} is already swept by grid.x (allowed values: {', '.join(others)})")
@@ -676,6 +687,41 @@ def check_initial_clear(cfg, overrides=()):
     _check_starts_clear(cfg.die, cfg.walls, cfg.initial, None, cfg.effects.corner_radius, _Checker(cfg.source, bool(overrides)))
 
 
+def _extreme(cfg, param):
+    """The largest |value| a roll of ``cfg`` starts from: its [initial] value, or the swept range's end."""
+    grid = cfg.grid
+    for axis in (grid.x, grid.y) if grid is not None else ():
+        if axis.param == param:
+            return f"grid.{'x' if axis is grid.x else 'y'}", max(abs(axis.min), abs(axis.max))
+    return f"initial.{param}", abs(getattr(cfg.initial, param))
+
+
+def check_computable(cfg, overrides=()):
+    """Refuse, before any roll, a config the kernel cannot compute in reasonable time or in
+    float64 (issue 32): a roll budget beyond :data:`MAX_ROLL_WORK` events or steps (fixed_step
+    rolls t_max / dt steps; dt = 1e-12 never ended), or a start whose speed at the table,
+    sqrt(vx0^2 + vy0^2 + (omega0 R)^2 + 2 g y0), exceeds :data:`MAX_TABLE_SPEED` (vx0 = 1e200
+    answered with t_end = NaN). Swept values count at their largest."""
+    checker = _Checker(cfg.source, bool(overrides))
+    integrator = cfg.integrator
+    steps = integrator.t_max / integrator.dt if integrator.method == "fixed_step" else 0.0
+    if max(integrator.max_events, steps) > MAX_ROLL_WORK:
+        key, what = ("integrator.dt", f"t_max / dt = {steps:.3g} steps") if steps > integrator.max_events else \
+            ("integrator.max_events", f"{integrator.max_events} events")
+        raise checker.error(key, f"{what} per roll is more work than a roll may take (allowed: at most {MAX_ROLL_WORK:.0e} events "
+                                 "or steps per roll, MAX_ROLL_WORK)")
+    radius, g = cfg.die.circumradius, cfg.world.g
+    parts = {param: _extreme(cfg, param) for param in ("vx0", "vy0", "omega0", "y0")}
+    speeds = {"vx0": parts["vx0"][1], "vy0": parts["vy0"][1], "omega0": parts["omega0"][1] * radius,
+              "y0": math.sqrt(2.0 * g * parts["y0"][1]) if parts["y0"][1] < 1e300 / g else math.inf}
+    speed = math.hypot(*speeds.values())
+    if not speed <= MAX_TABLE_SPEED:
+        param = max(speeds, key=speeds.get)
+        key, value = parts[param]
+        raise checker.error(key, f"{param} up to {value:g} {PARAM_UNITS[param]} starts the die at {speed:.3g} m/s at the table "
+                                 f"(allowed: sqrt(vx0^2 + vy0^2 + (omega0 R)^2 + 2 g y0) at most {MAX_TABLE_SPEED:g} m/s, MAX_TABLE_SPEED)")
+
+
 def load_config(path, overrides=()):
     """Read, parse and validate a TOML config file.
 
@@ -696,6 +742,9 @@ def load_config(path, overrides=()):
     ConfigError
         If the file cannot be read or the config is invalid.
     """
+    problem = not_a_file(path)  # a FIFO or /dev/zero would hang the reader
+    if problem:
+        raise ConfigError(path, "file", problem)
     try:
         with open(path, encoding="utf-8") as file:
             text = file.read()

@@ -54,14 +54,15 @@ class RollReport:
         return self.counts["impacts"]
 
     def to_dict(self):
-        """JSON-ready summary (no records)."""
+        """JSON-ready summary (no records); a time that is not a finite number is null (JSON
+        has no NaN)."""
         return {
             "outcome": self.outcome,
             "status": self.status_name,
             "status_code": self.status,
             "impacts": self.impacts,
-            "t_decided": None if np.isnan(self.t_decided) else self.t_decided,
-            "t_end": self.t_end,
+            "t_decided": self.t_decided if np.isfinite(self.t_decided) else None,
+            "t_end": self.t_end if np.isfinite(self.t_end) else None,
             **{k: v for k, v in self.counts.items() if k != "impacts"},
         }
 

@@ -18,6 +18,7 @@ import contextlib
 import dataclasses
 import datetime
 import errno
+import io
 import os
 import zlib
 from collections.abc import Mapping
@@ -26,8 +27,10 @@ import h5py
 import numpy as np
 
 from dice_sweep import __version__
-from dice_sweep.config import PARAM_LONG_NAMES
+from dice_sweep.config import MAX_SIDES, PARAM_LONG_NAMES
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.inputs import not_a_file
+from dice_sweep.outputs import check_space, written
 
 LAYOUT_VERSION = 2  # bump when a dataset or attribute changes meaning
 READ_LAYOUTS = (1, LAYOUT_VERSION)  # layouts this version reads, resumes and merges; it writes LAYOUT_VERSION
@@ -484,6 +487,70 @@ def _str_tuple(values) -> tuple[str, ...]:
     return tuple(v.decode() if isinstance(v, bytes) else str(v) for v in values)
 
 
+def _empty_file_image(header: SweepHeader, n_tiles: int) -> bytes:
+    """The bytes of a new, empty sweep file, built in memory: written by Python, a full disk
+    is one clean error, where HDF5 meeting it leaves a file it cannot close (a segfault)."""
+    maps = _map_datasets(header.count_columns, header.probability_sides)
+    axis_paths = (header.y.param, header.x.param)  # the axes are named after their parameters
+    if axis_paths[0] == axis_paths[1] or {*maps, "done_tiles", TILE_DIM, SIMULATED, REFINE_LEVEL} & {*axis_paths}:
+        raise ValueError(f"swept parameters {axis_paths} are not two names free in the layout")
+    attributes = _map_attributes(header)
+    image = io.BytesIO()
+    with h5py.File(image, "w") as h5:
+        ny, nx = header.shape
+        chunks = chunk_shape(header.tile_shape, header.shape)
+        h5.attrs.update(
+            {
+                "dice_sweep_layout": LAYOUT_VERSION,
+                "Conventions": CONVENTIONS,
+                "x_param": header.x.param,
+                "y_param": header.y.param,
+                "config_toml": header.config_toml,
+                "dice_sweep_version": header.dice_sweep_version,
+                "created": _utc_now(),
+                "complete": np.int8(0),  # not a bool: netCDF-C does not read h5py's bool (an HDF5 enum)
+                "sides": header.sides,
+                "shard": f"{header.shard[0]}/{header.shard[1]}",
+                "shard_rule": SHARD_RULE,
+                "tile_shape": np.asarray(header.tile_shape, dtype=np.int64),
+                "count_columns": list(header.count_columns),
+                # only a probability sweep has it: the files of one roll per cell are as before
+                **({"draws": np.int64(header.draws)} if header.draws > 1 else {}),
+            }
+        )
+        for axis in (header.y, header.x):
+            scale = h5.create_dataset(axis.param, data=np.asarray(axis.values, dtype=np.float64))
+            scale.attrs.update({"long_name": PARAM_LONG_NAMES.get(axis.param, axis.param), "units": axis.unit,
+                                "min": axis.lo, "max": axis.hi})
+            scale.make_scale(axis.param)
+        for name, (dtype, fill) in maps.items():
+            dataset = h5.create_dataset(
+                name, shape=(ny, nx), dtype=dtype, chunks=chunks, fillvalue=fill, **_COMPRESSION
+            )
+            dataset.attrs.update(attributes[name])
+            _attach_axes(h5, dataset, axis_paths)
+        tiles = h5.create_dataset(TILE_DIM, data=np.arange(n_tiles, dtype=np.int64))
+        tiles.attrs["long_name"] = "tile index (row-major, docs/hdf5.md)"
+        tiles.make_scale(TILE_DIM)
+        done = h5.create_dataset("done_tiles", shape=(n_tiles,), dtype=np.uint8, fillvalue=0)
+        done.attrs.update({"long_name": "1 once the tile's data are in the file",
+                           **_flags(np.array([0, 1], dtype=np.uint8), ("not_written", "written"))})
+        done.dims[0].attach_scale(tiles)
+    return image.getvalue()
+
+
+@contextlib.contextmanager
+def _new_file(path, header: SweepHeader, n_tiles: int):
+    """An empty sweep file at a temporary name (yielded), renamed to ``path`` when the block
+    ends; an existing ``path`` is refused, never replaced."""
+    if os.path.lexists(path):
+        raise DiceSweepError(f"{path}: cannot create (it exists)")
+    image = _empty_file_image(header, n_tiles)
+    with written(path, replace=False, defer=False) as temporary:  # read back at once: never held back
+        temporary.write_bytes(image)
+        yield temporary
+
+
 class SweepFile:
     """An open sweep file: create it, write tiles, read blocks back, mark it complete.
 
@@ -526,56 +593,9 @@ class SweepFile:
         n_tiles : int
             Number of tiles of the whole grid (length of ``/done_tiles``).
         """
-        maps = _map_datasets(header.count_columns, header.probability_sides)
-        axis_paths = (header.y.param, header.x.param)  # the axes are named after their parameters
-        if axis_paths[0] == axis_paths[1] or {*maps, "done_tiles", TILE_DIM, SIMULATED, REFINE_LEVEL} & {*axis_paths}:
-            raise ValueError(f"swept parameters {axis_paths} are not two names free in the layout")
-        attributes = _map_attributes(header)
-        try:
-            h5 = h5py.File(path, "w-")
-        except OSError as error:
-            raise DiceSweepError(f"{path}: cannot create ({error})") from None
-        ny, nx = header.shape
-        chunks = chunk_shape(header.tile_shape, header.shape)
-        h5.attrs.update(
-            {
-                "dice_sweep_layout": LAYOUT_VERSION,
-                "Conventions": CONVENTIONS,
-                "x_param": header.x.param,
-                "y_param": header.y.param,
-                "config_toml": header.config_toml,
-                "dice_sweep_version": header.dice_sweep_version,
-                "created": _utc_now(),
-                "complete": np.int8(0),  # not a bool: netCDF-C does not read h5py's bool (an HDF5 enum)
-                "sides": header.sides,
-                "shard": f"{header.shard[0]}/{header.shard[1]}",
-                "shard_rule": SHARD_RULE,
-                "tile_shape": np.asarray(header.tile_shape, dtype=np.int64),
-                "count_columns": list(header.count_columns),
-                # only a probability sweep has it: the files of one roll per cell are as before
-                **({"draws": np.int64(header.draws)} if header.draws > 1 else {}),
-            }
-        )
-        for axis in (header.y, header.x):
-            scale = h5.create_dataset(axis.param, data=np.asarray(axis.values, dtype=np.float64))
-            scale.attrs.update({"long_name": PARAM_LONG_NAMES.get(axis.param, axis.param), "units": axis.unit,
-                                "min": axis.lo, "max": axis.hi})
-            scale.make_scale(axis.param)
-        for name, (dtype, fill) in maps.items():
-            dataset = h5.create_dataset(
-                name, shape=(ny, nx), dtype=dtype, chunks=chunks, fillvalue=fill, **_COMPRESSION
-            )
-            dataset.attrs.update(attributes[name])
-            _attach_axes(h5, dataset, axis_paths)
-        tiles = h5.create_dataset(TILE_DIM, data=np.arange(n_tiles, dtype=np.int64))
-        tiles.attrs["long_name"] = "tile index (row-major, docs/hdf5.md)"
-        tiles.make_scale(TILE_DIM)
-        done = h5.create_dataset("done_tiles", shape=(n_tiles,), dtype=np.uint8, fillvalue=0)
-        done.attrs.update({"long_name": "1 once the tile's data are in the file",
-                           **_flags(np.array([0, 1], dtype=np.uint8), ("not_written", "written"))})
-        done.dims[0].attach_scale(tiles)
-        h5.flush()
-        return cls(h5, header)
+        with _new_file(path, header, n_tiles):  # a full disk here: one line, nothing left
+            pass
+        return cls.open(path, writable=True)
 
     @classmethod
     def open(cls, path, writable: bool = False) -> "SweepFile":
@@ -586,19 +606,70 @@ class SweepFile:
         DiceSweepError
             If the file is missing, damaged or not a dice_sweep sweep file.
         """
+        problem = not_a_file(path)  # HDF5 would block on a FIFO
+        if problem:
+            raise DiceSweepError(f"{path}: {problem}")
         try:
             h5 = h5py.File(path, "r+" if writable else "r")
         except OSError as error:
             raise _open_error(path, error, writable) from None
         try:
             with _reading(path, "header"):
-                return cls(h5, _read_header(h5))
+                sweep_file = cls(h5, _read_header(h5))
+                sweep_file._check_layout()
+                return sweep_file
         except (KeyError, ValueError) as error:
             h5.close()
             raise DiceSweepError(f"{path}: not a dice_sweep sweep file ({_one_line(error)}; {SWEEP_FILE_KIND})") from None
         except DiceSweepError:
             h5.close()
             raise
+
+    def _invalid(self, key: str, problem: str, allowed: str) -> DiceSweepError:
+        return DiceSweepError(f"{self.path}: {key}: {problem} (allowed: {allowed}; docs/hdf5.md)")
+
+    def _check_layout(self) -> None:
+        """Refuse a file whose description does not fit docs/hdf5.md (forged or damaged): sides,
+        axes, tile and shard, and the shape and dtype of every map, before anything reads it."""
+        header = self.header
+        if not 3 <= header.sides <= MAX_SIDES:
+            raise self._invalid("sides", f"{header.sides} sides", f"an integer 3 to {MAX_SIDES}")
+        if header.x.param == header.y.param:
+            raise self._invalid("y_param", f"{header.y.param!r} is also the x axis", "two different swept parameters")
+        for axis in (header.x, header.y):
+            values = np.asarray(axis.values)
+            if (values.ndim != 1 or values.size == 0 or values.dtype.kind != "f" or not np.isfinite(values).all()
+                    or not np.all(np.diff(values) > 0) or not (np.isfinite(axis.lo) and np.isfinite(axis.hi) and axis.lo < axis.hi)):
+                span = f" from {values.min():g} to {values.max():g}" if values.dtype.kind == "f" and values.size else ""
+                raise self._invalid(f"/{axis.param}", f"{values.size} {values.dtype} values{span} in [{axis.lo:g}, {axis.hi:g}]",
+                                    "finite, strictly increasing cell centres, and finite min < max")
+        (shard_index, shard_count), tile_shape = header.shard, header.tile_shape
+        if not 0 <= shard_index < shard_count:
+            raise self._invalid("shard", f"{shard_index}/{shard_count}", "I/N with 0 <= I < N")
+        if len(tile_shape) != 2 or min(tile_shape) < 1:
+            raise self._invalid("tile_shape", f"{list(tile_shape)}", "two positive integers")
+        for name, (dtype, _) in self._maps.items():
+            dataset = self._datasets[name]
+            if dataset.shape != header.shape or dataset.dtype.kind != dtype.kind:
+                raise self._invalid(f"/{dataset.name.lstrip('/')}", f"{dataset.dtype} of shape {dataset.shape}",
+                                    f"{dtype} of the axes' shape {header.shape}")
+        n_tiles = -(-header.shape[0] // tile_shape[0]) * -(-header.shape[1] // tile_shape[1])
+        if self._datasets["done_tiles"].shape != (n_tiles,):
+            raise self._invalid("/done_tiles", f"shape {self._datasets['done_tiles'].shape}", f"({n_tiles},): one flag per tile")
+
+    def _check_outcomes(self, outcome: np.ndarray, status: np.ndarray) -> None:
+        """Refuse computed cells whose outcome is no side of the die and not -1 (undecided)."""
+        bad = (status != NOT_COMPUTED) & ((outcome < UNDECIDED) | (outcome >= self.header.sides))
+        if bad.any():
+            row, col = np.argwhere(bad)[0]
+            raise self._invalid("/outcome", f"{outcome[row, col]} in a computed cell (row {row}, column {col}) of a "
+                                f"{self.header.sides}-sided die", f"-1 (undecided) or a side 0 .. {self.header.sides - 1}")
+
+    def check_values(self) -> None:
+        """Refuse a file whose outcome map holds a value no roll of its die gives (merge
+        copies chunks without decoding them, so it checks every part first)."""
+        with _reading(self.path, "maps"):
+            self._check_outcomes(self._datasets["outcome"][...], self._datasets["status"][...])
 
     def close(self) -> None:
         """Flush and close the file."""
@@ -642,8 +713,10 @@ class SweepFile:
         The data go first and the bookkeeping last, then a flush: a kill at any point leaves
         the tile either recorded with its data or not recorded at all.
         """
-        with _naming(self.path, f"cannot write tile {tile_index}", "; the tiles written before it are kept, "
-                     "and the file is not marked complete"):
+        kept = "; the tiles written before it are kept, and the file is not marked complete"
+        size = sum(map(len, maps.chunks.values())) if isinstance(maps, EncodedTile) else sum(v.nbytes for v in maps.values())
+        check_space(self.path, size, f" for tile {tile_index}{kept}")
+        with _naming(self.path, f"cannot write tile {tile_index}", kept):
             if isinstance(maps, EncodedTile) and self._copies_chunks(rows, cols):
                 for name, chunk_bytes in maps.chunks.items():
                     self._datasets[name].id.write_direct_chunk((rows.start, cols.start), chunk_bytes)
@@ -693,10 +766,13 @@ class SweepFile:
     def read_block(self, rows: slice, cols: slice) -> dict[str, np.ndarray]:
         """Stored arrays of a block, by map name (the form :meth:`write_tile` takes)."""
         with _reading(self.path, "maps"):
-            return {name: self._datasets[name][rows, cols] for name in self._maps}
+            block = {name: self._datasets[name][rows, cols] for name in self._maps}
+        self._check_outcomes(block["outcome"], block["status"])
+        return block
 
     def mark_complete(self) -> None:
         """Set the ``complete`` attribute (call only when every tile of the shard is done)."""
+        check_space(self.path, 0, "; the file is not marked complete")
         self._h5.attrs["complete"] = True if self.layout == 1 else np.int8(1)
         self._h5.flush()
 
@@ -708,6 +784,7 @@ class SweepFile:
             maps = {name: self._datasets[name][...] for name in ("outcome", "status", "impacts", "t_decided")}
             counts = {name: self._datasets[name][...] for name in extra}
             shares = [self._datasets[name][...] for name in probability_names(header.probability_sides)]
+        self._check_outcomes(maps["outcome"], maps["status"])
         not_computed = maps["status"] == NOT_COMPUTED  # as layout 1 stored them (SweepData)
         maps["outcome"][not_computed] = UNDECIDED
         for values in (maps["impacts"], *counts.values()):
@@ -733,15 +810,13 @@ class SweepFile:
 @contextlib.contextmanager
 def create_whole(path, header: SweepHeader, n_tiles: int):
     """:meth:`SweepFile.create` for a file one call writes whole (a merge, a refined sweep;
-    neither can be resumed): if the block fails, the file is closed and removed, so that no
-    half-written file is left to block or mislead the next run."""
-    sweep_file = SweepFile.create(path, header, n_tiles)
-    try:
-        with sweep_file:
+    neither can be resumed): written under a temporary name and renamed to ``path`` once the
+    block ends, so that no half-written file is left to block or mislead the next run (if the
+    block fails, the temporary is removed)."""
+    with _new_file(path, header, n_tiles) as temporary:
+        with SweepFile.open(temporary, writable=True) as sweep_file:
+            sweep_file.path = str(path)  # errors name the output, not its temporary
             yield sweep_file
-    except BaseException:
-        os.unlink(path)
-        raise
 
 
 def _axis_paths(h5: h5py.File, layout: int) -> tuple[str, str]:
@@ -827,6 +902,7 @@ def write_refinement_maps(sweep_file: SweepFile, refine_level: np.ndarray, level
         Number of refinement levels; pixels at this level were rolled at their own centre.
     """
     h5 = sweep_file._h5
+    check_space(sweep_file.path, 2 * refine_level.size, " for the refinement maps")
     chunks = chunk_shape(sweep_file.header.tile_shape, sweep_file.header.shape)
     maps = {SIMULATED: (refine_level == levels).astype(np.uint8), REFINE_LEVEL: refine_level.astype(np.uint8)}
     attributes = {

@@ -449,6 +449,7 @@ def run_sweep(
     done = np.zeros(tiles.count, dtype=bool)
     if resuming:
         with SweepFile.open(path) as existing:
+            existing.check_values()  # its tiles are kept as they are: no side the die does not have
             _check_resumable(path, existing.header, header)
             if existing.complete:
                 return summary(0, True, already_complete=True)
@@ -567,6 +568,8 @@ def merge_parts(part_paths: Sequence, out_path) -> SweepSummary:
     with contextlib.ExitStack() as stack:
         parts = [stack.enter_context(SweepFile.open(part_path)) for part_path in part_paths]
         _check_parts(parts)
+        for part in parts:
+            part.check_values()
         header = dataclasses.replace(parts[0].header, shard=(0, 1))
         tiles = TileGrid(header.shape, header.tile_shape)
         with create_whole(path, header, tiles.count) as merged:

@@ -63,6 +63,115 @@ G = str(T/"good.h5"); D = str(T/"drops.csv")
 cases = []
 def add(*args, out=None):
     cases.append((list(args), out))
+
+
+def issue32_io_cases():
+    """Issue 32, items 1-3 (branch io32): a full disk, forged files, values that cannot be computed,
+    FIFOs and devices as inputs. Kept in one block, apart from the cases of items 4-6."""
+    import atexit
+    import json
+    sys.path.insert(0, str(Path(C).parent))
+    from tests.helpers import replace_dataset as replace, set_first
+    X = T / "io32"
+    X.mkdir()
+    # -- item 2: sweep files that do not fit docs/hdf5.md, drawn, merged, measured, controlled, served
+    def forge(name, change):
+        path = X / f"{name}.h5"
+        path.write_bytes(good)
+        with h5py.File(path, "r+") as h5:
+            change(h5)
+        return str(path)
+    forged = {
+        "shape": lambda h5: replace(h5, "outcome", np.zeros((3, 5), np.int8)),
+        "float": lambda h5: replace(h5, "outcome", h5["outcome"][...].astype(np.float32)),
+        "fifty": set_first("outcome", 50), "minus128": lambda h5: (set_first("outcome", -128)(h5), set_first("status", 0)(h5)),
+        "sides0": lambda h5: h5.attrs.__setitem__("sides", 0), "sides500": lambda h5: h5.attrs.__setitem__("sides", 500),
+        "same_axes": lambda h5: h5.attrs.__setitem__("x_param", h5.attrs["y_param"]),
+        "axis_inf": lambda h5: h5["omega0"].__setitem__(3, np.inf),
+        "axis_down": lambda h5: h5["omega0"].__setitem__(3, -1.0),
+        "status_shape": lambda h5: replace(h5, "status", np.zeros((4, 4), np.uint8)),
+        "shard": lambda h5: h5.attrs.__setitem__("shard", "5/2"),
+    }
+    for key, change in forged.items():
+        path = forge(key, change)
+        add("plot", path, "-o", str(X / f"p_{key}.png"), out=X / f"p_{key}.png")
+        add("merge", path, "-o", str(X / f"m_{key}.h5"), out=X / f"m_{key}.h5")
+        add("measure", path, "--json", str(X / f"j_{key}.json"), out=X / f"j_{key}.json")
+        add("control", path, "--sigma", "y0=0.01", "-o", str(X / f"c_{key}.npz"), out=X / f"c_{key}.npz")
+        add("view", path, "--no-open", "--port", "0")
+        add("sweep", f"{C}/demo.toml", "-o", path, "--resume", "--set", "grid.x.num=16", "--set", "grid.y.num=16")
+    # -- item 2: fit JSONs edited by hand, refused by forecast before the work
+    rng = np.random.default_rng(0)
+    paper = {"beta_normal": 0.2, "beta_tangential": -0.35}
+    def fit(name, **changes):
+        data = {"model": "paper", "effects": [], "params": {k: {"value": v, "ci95": [v - 0.01, v + 0.01]} for k, v in paper.items()},
+                "angle_reading": "as-is: unchanged", "die": {"sides": 4, "circumradius": 0.042426406871192854},
+                "split": {"confirm_fraction": 0.3, "seed": 0},
+                "bootstrap_draws": {"names": list(paper), "values": (np.array(list(paper.values())) + 0.005 * rng.normal(size=(50, 2))).tolist()}}
+        data.update(changes)
+        path = X / f"fit_{name}.json"
+        path.write_text(json.dumps(data))
+        return str(path)
+    fits = [fit("beta5", params={"beta_normal": {"value": 5.0}, "beta_tangential": {"value": -0.35}}),
+            fit("draws", bootstrap_draws={"names": list(paper), "values": [[0.2, -0.35], [1.7, -0.35]]}),
+            fit("model", model="no_such_model"),
+            fit("fraction1", split={"confirm_fraction": 1.0, "seed": 0}, train_tracks=28, test_tracks=39),
+            fit("fraction0", split={"confirm_fraction": 0.0, "seed": 0}),
+            fit("counts", train_tracks=28, test_tracks=39)]
+    for path in fits:
+        out = X / (Path(path).stem + "_f.json")
+        add("forecast", D, "--config", f"{C}/square_drops.toml", "--fit", path, "--json", str(out), out=out)
+    # -- item 3: values that cannot be computed, refused up front
+    huge = ["--set", "grid.x.min=-1e308", "--set", "grid.x.max=1e308"]
+    add("sweep", f"{C}/demo.toml", "-o", str(X / "huge.h5"), *huge, out=X / "huge.h5")
+    add("sweep", f"{C}/demo.toml", "-o", str(X / "tiny.h5"), "--set", "grid.x.min=1", "--set", "grid.x.max=1.0000000000000002", out=X / "tiny.h5")
+    add("roll", f"{C}/table1.toml", "--set", "initial.vx0=1e200")
+    add("roll", f"{C}/table1.toml", "--set", "initial.vx0=1e200", "--json")
+    add("roll", f"{C}/table1.toml", "--set", "initial.omega0=1e300", "--json")
+    add("roll", f"{C}/table1.toml", "--set", "initial.y0=1e308")
+    add("sweep", f"{C}/demo.toml", "-o", str(X / "fast.h5"), "--set", "grid.x.max=1e9", out=X / "fast.h5")
+    budget = ["--set", "integrator.dt=1e-12", "--set", f"integrator.max_events={2**62}"]
+    add("roll", f"{C}/table1.toml", *budget)
+    add("roll", f"{C}/table1.toml", *budget, "--set", "integrator.method=fixed_step")
+    add("roll", f"{C}/table1.toml", "--set", "integrator.dt=1e-12", "--set", "integrator.method=fixed_step")
+    add("sweep", f"{C}/demo.toml", "-o", str(X / "budget.h5"), *budget, out=X / "budget.h5")
+    add("simulate-drops", f"{C}/square_drops.toml", "-o", str(X / "budget.csv"), "--tracks", "2", *budget, out=X / "budget.csv")
+    fifo = X / "fifo"
+    os.mkfifo(fifo)
+    for source in (str(fifo), "/dev/zero"):
+        add("roll", source)
+        add("sweep", source, "-o", str(X / "f.h5"), out=X / "f.h5")
+        for cmd in ("fit", "calibrate"):
+            add(cmd, source, "--config", f"{C}/square_drops.toml")
+            add(cmd, D, "--config", source)
+        add("diagnose", source, "--config", f"{C}/square_drops.toml", "--json", str(X / "d.json"), out=X / "d.json")
+        add("forecast", source, "--config", f"{C}/square_drops.toml", "--fit", fits[0], "--json", str(X / "f.json"), out=X / "f.json")
+        add("forecast", D, "--config", f"{C}/square_drops.toml", "--fit", source, "--json", str(X / "f.json"), out=X / "f.json")
+        add("plot", source, "-o", str(X / "f.png"), out=X / "f.png")
+        add("merge", source, "-o", str(X / "f.h5"), out=X / "f.h5")
+        add("measure", source)
+        add("control", source, "--sigma", "y0=0.01")
+    # -- item 1: a full disk (a small tmpfs; root only): one line naming the file, nothing left
+    disk = X / "disk"
+    disk.mkdir()
+    if os.geteuid() != 0 or subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(disk)], capture_output=True).returncode:
+        print("issue 32 full-disk cases skipped: mounting a tmpfs needs root")
+        return
+    atexit.register(subprocess.run, ["umount", "-l", str(disk)], check=False)
+    with open(disk / "ballast", "wb") as ballast:  # no byte left
+        ballast.write(b"\0" * (os.statvfs(disk).f_bavail * os.statvfs(disk).f_frsize))
+    full = lambda name: (str(disk / name), disk / name)
+    for args, name in [(["sweep", f"{C}/demo.toml", "--set", "grid.x.num=16", "--set", "grid.y.num=16", "-o"], "s.h5"),
+                       (["merge", G, "-o"], "m.h5"), (["plot", G, "-o"], "p.png"), (["roll", f"{C}/table1.toml", "--gif"], "r.gif"),
+                       (["roll", f"{C}/table1.toml", "--png"], "r.png"), (["simulate-drops", f"{C}/square_drops.toml", "--tracks", "3", "-o"], "d.csv"),
+                       (["calibrate", D, "--config", f"{C}/square_drops.toml", "--json"], "c.json"), (["measure", G, "--json"], "m.json"),
+                       (["control", G, "--sigma", "y0=0.01", "-o"], "c.npz"), (["control", G, "--sigma", "y0=0.01", "--json"], "c.json"),
+                       (["forecast", D, "--config", f"{C}/square_drops.toml", "--fit", fit("good"), "--members", "1000", "--map-size", "0", "--quiet", "--json"], "f.json")]:
+        text, out = full(name)
+        add(*args, text, out=out)
+
+
+issue32_io_cases()
 for key in ["missing","dir","binary","badtoml","unknown_sec","nan","inf","str_num","bool","float_sides","list","neg_r","below","tmax0","bom","latin1","dup"]:
     add("roll", F[key])
 for key in ["grid_minmax","grid_param","grid_same","grid_num","grid_below","nan","missing"]:

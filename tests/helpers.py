@@ -98,6 +98,26 @@ def corrupt_first_chunk(path, dataset="outcome"):
         file.write(b"\xff" * 20)
 
 
+def replace_dataset(h5, name, data):
+    """Put ``data`` in place of dataset ``name`` of an open h5py file, its attributes kept (a
+    forged map: another shape or dtype; scripts/bad_inputs.py forges with it too)."""
+    attrs = {key: value for key, value in h5[name].attrs.items() if key not in ("DIMENSION_LIST", "_FillValue")}
+    for dim in h5[name].dims:
+        for scale in list(dim.values()):
+            dim.detach_scale(scale)
+    del h5[name]
+    h5.create_dataset(name, data=data).attrs.update(attrs)
+
+
+def set_first(name, value):
+    """A change (for an open h5py file) that puts ``value`` in the first cell of dataset ``name``."""
+    def change(h5):
+        values = h5[name][...]
+        values.flat[0] = value
+        h5[name][...] = values
+    return change
+
+
 # --- pictures -----------------------------------------------------------------------------
 
 

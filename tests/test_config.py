@@ -15,7 +15,10 @@ from dice_sweep.config import (
     Config,
     Grid,
     Initial,
+    MAX_ROLL_WORK,
+    MAX_TABLE_SPEED,
     Walls,
+    check_computable,
     check_initial_clear,
     config_to_toml,
     default_config,
@@ -512,3 +515,57 @@ def test_event_budget_of_a_huge_fixed_step_count_fits_int64():
     cfg = parse_config("[integrator]\nmethod = \"fixed_step\"\nt_max = 1e12\ndt = 1e-9")
     assert event_budget(cfg.integrator) == MAX_EVENTS
     pack_params(cfg)
+
+
+# ---- values that cannot be computed, refused up front (issue 32) ---------------------------------
+
+WIDE_GRID = "[grid]\nx = {{ param = \"omega0\", min = {low}, max = {high}, num = {num} }}\ny = {{ param = \"y0\", min = 0.05, max = 0.3, num = 4 }}\n"
+
+
+@pytest.mark.parametrize(("low", "high", "num"), [(-1e308, 1e308, 10), (1.0, 1.0000000000000002, 4), (-1.7e308, 1.7e308, 1)])
+def test_a_grid_whose_cell_centres_are_not_finite_distinct_numbers_is_refused(low, high, num):
+    with pytest.raises(ConfigError) as error:
+        parse_config(WIDE_GRID.format(low=low, high=high, num=num), source="g.toml")
+    assert str(error.value).startswith("g.toml: grid.x: ") and "not finite, distinct numbers" in str(error.value)
+
+
+def test_a_wide_grid_of_finite_centres_is_kept():
+    """The control: centres far apart but finite are a grid like any other."""
+    cfg = parse_config(WIDE_GRID.format(low=-1e300, high=1e300, num=10))
+    assert np.isfinite(cfg.grid.x.values()).all()
+
+
+@pytest.mark.parametrize(("text", "key", "fragment"), [
+    ("[initial]\nvx0 = 1e200", "initial.vx0", "1e+200 m/s at the table"),
+    ("[initial]\nomega0 = 1e300", "initial.omega0", "at most 1000 m/s"),
+    ("[initial]\ny0 = 1e308", "initial.y0", "inf m/s at the table"),
+    ("[initial]\nvy0 = -1001", "initial.vy0", "MAX_TABLE_SPEED"),
+    (WIDE_GRID.format(low=0, high=1e9, num=4), "grid.x", "omega0 up to 1e+09 rad/s"),
+    ("[integrator]\nmax_events = 4611686018427387904", "integrator.max_events", "4611686018427387904 events per roll"),
+    ("[integrator]\nmethod = \"fixed_step\"\ndt = 1e-12", "integrator.dt", "t_max / dt = 3e+13 steps"),
+])
+def test_work_and_speeds_a_roll_cannot_finish_are_refused_with_the_limit(text, key, fragment):
+    cfg = parse_config(text, source="c.toml")
+    with pytest.raises(ConfigError) as error:
+        check_computable(cfg)
+    message = str(error.value)
+    assert message.startswith(f"c.toml: {key}: ") and fragment in message, message
+    assert "MAX_ROLL_WORK" in message or "MAX_TABLE_SPEED" in message
+
+
+def test_the_limits_let_every_shipped_config_and_the_edges_through():
+    for path in sorted(CONFIG_DIR.glob("*.toml")):
+        check_computable(load_config(path))
+    radius = default_config().die.circumradius
+    check_computable(parse_config(f"[integrator]\nmax_events = {MAX_ROLL_WORK}"))
+    check_computable(parse_config(f"[integrator]\nmethod = \"fixed_step\"\nt_max = 1.0\ndt = {1 / MAX_ROLL_WORK}"))
+    check_computable(default_config().with_initial(y0=0.1, vx0=0.0, vy0=0.0, omega0=0.99 * MAX_TABLE_SPEED / radius - 1.0))
+
+
+def test_a_fifo_as_config_is_refused_without_opening_it(tmp_path):
+    import os
+
+    fifo = tmp_path / "c.toml"
+    os.mkfifo(fifo)
+    with pytest.raises(ConfigError, match=r"c.toml: file: is a FIFO \(named pipe\), not a regular file"):
+        load_config(fifo)

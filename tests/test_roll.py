@@ -59,3 +59,15 @@ def test_times_outside_the_roll_are_clipped_and_sorted():
     np.testing.assert_array_equal(path[2], sample_path(cfg, report, [report.t_end])[0])  # later: the end
     radius = cfg.die.circumradius
     assert radius / math.sqrt(2) * (1 - 1e-12) <= path[2, 1] < radius  # decided: on the table, below the barrier
+
+
+def test_a_time_that_is_not_a_number_is_null_in_the_json():
+    """Issue 32: `roll --json` printed "t_end": NaN, which is not JSON."""
+    import dataclasses
+    import json
+
+    report = roll_config(parse_config(CONFIG))
+    assert json.loads(json.dumps(report.to_dict(), allow_nan=False))["t_end"] == report.t_end  # the control: a number
+    broken = dataclasses.replace(report, t_end=math.nan, t_decided=math.inf)
+    summary = json.loads(json.dumps(broken.to_dict(), allow_nan=False))
+    assert summary["t_end"] is None and summary["t_decided"] is None

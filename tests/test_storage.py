@@ -1,5 +1,6 @@
 """Tests of dice_sweep.storage: the HDF5 layout of docs/hdf5.md, read back with plain h5py."""
 
+import os
 import pathlib
 import re
 import subprocess
@@ -27,7 +28,7 @@ from dice_sweep.storage import (
     read_sweep,
     rolls_to_maps,
 )
-from tests.helpers import corrupt_first_chunk
+from tests.helpers import corrupt_first_chunk, replace_dataset, set_first
 
 DOCS = pathlib.Path(__file__).resolve().parent.parent / "docs" / "hdf5.md"
 GOLDEN = pathlib.Path(__file__).resolve().parent / "golden"
@@ -338,3 +339,126 @@ def test_read_tile_gives_the_stored_chunks_that_decode_to_the_block(tmp_path):
             assert all(decoded[name].tobytes() == block[name].tobytes() for name in block)
         missing = sweep_file.read_tile(*TILE_BOUNDS[3])  # no chunk: the arrays (fill values)
         assert isinstance(missing, dict) and (missing["status"] == NOT_COMPUTED).all()
+
+
+# ---- a full disk and forged files (issue 32) -----------------------------------------------------
+
+
+def test_a_full_disk_before_a_tile_stops_the_sweep_cleanly_and_it_resumes(tmp_path, monkeypatch):
+    """HDF5 that meets a full disk in a write leaves a file it cannot close (the process
+    segfaulted at exit): the space is checked before each tile, the file closed cleanly, not
+    marked complete, and finished later from where it stopped."""
+    import dice_sweep.outputs as outputs
+
+    path = tmp_path / "sweep.h5"
+    disk = {"free": 10**12}
+    monkeypatch.setattr(outputs, "free_bytes", lambda folder: disk["free"])
+    with SweepFile.create(path, make_header(), n_tiles=len(TILE_BOUNDS)) as sweep_file:
+        sweep_file.write_tile(0, *TILE_BOUNDS[0], tile_maps(0))
+        disk["free"] = outputs.HDF5_SPARE  # full: no room for a tile's data beside HDF5's spare
+        with pytest.raises(DiceSweepError, match=rf"^{path}: no space left on the device: .* for tile 1; the tiles written "
+                                                 "before it are kept, and the file is not marked complete$"):
+            sweep_file.write_tile(1, *TILE_BOUNDS[1], tile_maps(1))
+        disk["free"] = outputs.HDF5_SPARE - 1
+        with pytest.raises(DiceSweepError, match="the file is not marked complete"):
+            sweep_file.mark_complete()
+    data = read_sweep(path)
+    assert not data.complete and data.computed[TILE_BOUNDS[0]].all() and data.computed.sum() == 6
+    disk["free"] = 10**12
+    with SweepFile.open(path, writable=True) as sweep_file:
+        for index in (1, 2, 3):
+            sweep_file.write_tile(index, *TILE_BOUNDS[index], tile_maps(index))
+        sweep_file.mark_complete()
+    write_file(tmp_path / "whole.h5")
+    assert_same_data(read_sweep(path), read_sweep(tmp_path / "whole.h5"))
+
+
+def assert_same_data(data, reference):
+    assert data.complete and reference.complete
+    for name, values in reference.maps.items():
+        np.testing.assert_array_equal(data.maps[name], values, err_msg=name)
+
+
+def test_a_full_disk_at_creation_leaves_nothing(tmp_path, monkeypatch):
+    def no_room(path):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(pathlib.Path, "write_bytes", lambda self, data: no_room(self))
+    with pytest.raises(DiceSweepError, match=r"sweep.h5: cannot be written: No space left on device \(errno 28\)"):
+        SweepFile.create(tmp_path / "sweep.h5", make_header(), n_tiles=4)
+    with pytest.raises(DiceSweepError, match="merged.h5: cannot be written: No space left"):
+        with create_whole(tmp_path / "merged.h5", make_header(), n_tiles=4):
+            pass
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_whole_file_appears_only_once_complete(tmp_path):
+    path = tmp_path / "merged.h5"
+    with create_whole(path, make_header(), n_tiles=len(TILE_BOUNDS)) as sweep_file:
+        assert not path.exists() and sweep_file.path == str(path)  # written under a temporary name
+        for index in TILE_BOUNDS:
+            sweep_file.write_tile(index, *TILE_BOUNDS[index], tile_maps(index))
+        sweep_file.mark_complete()
+    assert read_sweep(path).complete and [p.name for p in tmp_path.iterdir()] == ["merged.h5"]
+
+
+def forged(tmp_path, change):
+    """A complete sweep file, then ``change(h5)`` made to it with plain h5py."""
+    path = tmp_path / "forged.h5"
+    write_file(path)
+    with h5py.File(path, "r+") as h5:
+        change(h5)
+    return path
+
+
+def set_axis(h5, value):
+    values = h5["vx0"][...]
+    values[2] = value
+    h5["vx0"][...] = values
+
+
+FORGED = {  # change -> (key, fragment of the one line)
+    "outcome of the wrong shape": (lambda h5: replace_dataset(h5, "outcome", np.zeros((2, 5), np.int8)), "/outcome", "shape (2, 5)"),
+    "float outcomes": (lambda h5: replace_dataset(h5, "outcome", np.zeros((3, 5), np.float32)), "/outcome", "float32"),
+    "outcome 50 on a five-sided die": (set_first("outcome", 50), "/outcome", "50 in a computed cell (row 0, column 0)"),
+    "outcome -128 in a computed cell": (lambda h5: (set_first("outcome", -128)(h5), set_first("status", 0)(h5)), "/outcome", "-128"),
+    "sides 0": (lambda h5: h5.attrs.__setitem__("sides", 0), "sides", "0 sides"),
+    "sides 200": (lambda h5: h5.attrs.__setitem__("sides", 200), "sides", "an integer 3 to 127"),
+    "x axis equal to the y axis": (lambda h5: h5.attrs.__setitem__("x_param", "y0"), "y_param", "also the x axis"),
+    "an axis value inf": (lambda h5: set_axis(h5, np.inf), "/vx0", "finite, strictly increasing"),
+    "an axis not increasing": (lambda h5: set_axis(h5, -0.8), "/vx0", "finite, strictly increasing"),
+    "shard 3/2": (lambda h5: h5.attrs.__setitem__("shard", "3/2"), "shard", "3/2"),
+    "tile shape 0": (lambda h5: h5.attrs.__setitem__("tile_shape", np.array([0, 3])), "tile_shape", "two positive integers"),
+    "status of the wrong shape": (lambda h5: replace_dataset(h5, "status", np.zeros((3, 4), np.uint8)), "/status", "shape (3, 4)"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(FORGED))
+def test_a_forged_file_is_refused_naming_the_file_and_the_key(tmp_path, case):
+    change, key, fragment = FORGED[case]
+    path = forged(tmp_path, change)
+    with pytest.raises(DiceSweepError) as error:
+        with SweepFile.open(path) as sweep_file:
+            sweep_file.check_values()  # what merge asks of each part
+    message = str(error.value)
+    assert message.startswith(f"{path}: {key}: ") and fragment in message and "\n" not in message, message
+    with pytest.raises(DiceSweepError, match=f"^{re.escape(str(path))}: {key}: "):
+        read_sweep(path)
+
+
+def test_the_control_file_passes_every_check(tmp_path):
+    """The same file unchanged: nothing to find (the checks do not refuse good files)."""
+    path = forged(tmp_path, lambda h5: None)
+    with SweepFile.open(path) as sweep_file:
+        sweep_file.check_values()
+    assert read_sweep(path).complete
+    for golden in sorted(GOLDEN.glob("*.h5")):  # files of both layouts, every die
+        with SweepFile.open(golden) as sweep_file:
+            sweep_file.check_values()
+
+
+def test_a_fifo_is_refused_without_opening_it(tmp_path):
+    fifo = tmp_path / "sweep.h5"
+    os.mkfifo(fifo)
+    with pytest.raises(DiceSweepError, match="sweep.h5: is a FIFO"):
+        read_sweep(fifo)

@@ -11,7 +11,7 @@ import pathlib
 from dice_sweep.chaos.control import ControlMap, control_map
 from dice_sweep.chaos.measures import DEFAULT_BOX_SIZE, ChaosMeasures, measure_map
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.outputs import FOLDER, JSON, NPZ, check_outputs, write_json
+from dice_sweep.outputs import FOLDER, JSON, NPZ, check_outputs, make_folder, write_json
 from dice_sweep.plotting import axis_labels, box_entropy_panel, plot_control_map, plot_scalar_maps, plot_uncertainty_curves
 from dice_sweep.storage import read_sweep
 
@@ -19,8 +19,7 @@ from dice_sweep.storage import read_sweep
 def _png_folder(png_dir) -> pathlib.Path:
     check_outputs(("--png", png_dir, FOLDER))
     folder = pathlib.Path(png_dir)
-    folder.mkdir(exist_ok=True)
-    return folder
+    return make_folder(folder)
 
 
 def read_complete_sweep(path):

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import worker_count
+from dice_sweep.inputs import not_a_file
 from dice_sweep.measured import forecast as fc
 from dice_sweep.measured.noise import tracking_noise
 from dice_sweep.measured.release import release_map
@@ -18,27 +19,42 @@ from dice_sweep.measured.checks import check_measured
 from dice_sweep.measured.report import jsonable
 from dice_sweep.measured.split import CONFIRM_FRACTION
 from dice_sweep.measured.tracks import load_tracks
-from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
+from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, make_folder, replace_atomically, write_json
 
 MAP_SIZE = 512  # cells per axis of the release map: docs/chaos.md measures its maps at 512 x 512
 MAP_SIZES = (16, 2048)  # --map-size (0: no map)
 PICTURES = ("reliability.png", "skill_by_bounce.png", "release_map.png")
 
 
-def read_fit_file(path, cfg):
-    """:func:`dice_sweep.measured.forecast.parse_fit` of a JSON file, with one-line errors for a
-    file that cannot be read or is not JSON."""
+def load_fit_json(path):
+    """The decoded JSON of a fit file, with one-line errors for a file that cannot be read
+    (a FIFO among them) or is not JSON."""
+    problem = not_a_file(path)  # a FIFO would hang the reader
+    if problem:
+        raise DiceSweepError(f"--fit: {path}: {problem}")
     try:
         text = Path(path).read_text()
     except OSError as error:
         raise DiceSweepError(f"--fit: {path}: cannot be read ({error.strerror or error}) "
                              "(allowed: the JSON written by dice-sweep fit --json or dice-sweep diagnose --json)") from None
     try:
-        data = json.loads(text)
+        return json.loads(text)
     except (json.JSONDecodeError, UnicodeDecodeError) as error:
         raise DiceSweepError(f"--fit: {path}: not JSON ({error}) "
                              "(allowed: the JSON written by dice-sweep fit --json or dice-sweep diagnose --json)") from None
-    return fc.parse_fit(data, path, cfg, CONFIRM_FRACTION, 0)
+
+
+def fit_source(data, path, cfg):
+    """:func:`dice_sweep.measured.forecast.parse_fit` of a decoded fit JSON, its values checked
+    (:func:`~dice_sweep.measured.forecast.check_fit_values`)."""
+    source = fc.parse_fit(data, path, cfg, CONFIRM_FRACTION, 0)
+    fc.check_fit_values(data, source, cfg, path)
+    return source
+
+
+def read_fit_file(path, cfg):
+    """:func:`fit_source` of a JSON file (:func:`load_fit_json`)."""
+    return fit_source(load_fit_json(path), path, cfg)
 
 
 def parse_map_axes(text):
@@ -81,10 +97,12 @@ def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.
     fc.check_members(members)
     _check_map_size(map_size)
     axes = parse_map_axes(map_axes) if isinstance(map_axes, str) else map_axes
-    source = read_fit_file(fit_path, cfg)
+    fit_json = load_fit_json(fit_path)
+    source = fit_source(fit_json, fit_path, cfg)
     _check_angle(source, angle)
     workers = worker_count(workers)
     trackset = load_tracks(data_path, sides=cfg.die.sides, circumradius=cfg.die.circumradius, rate=rate, angle=angle)
+    fc.check_split(fit_json, source, trackset, fit_path)
     check_measured(trackset, cfg)  # units and conventions, before the work (issue 30)
     table, noise, sigma = tracking_noise(trackset, cfg)
     loaded = time.perf_counter()
@@ -144,7 +162,7 @@ def draw_pictures(report, picture, folder, sides):
     """reliability.png, skill_by_bounce.png and (with a map) release_map.png in ``folder``."""
     from dice_sweep.plotting import plot_release_map, plot_reliability, plot_skill_by_bounce
 
-    folder.mkdir(parents=True, exist_ok=True)
+    make_folder(folder)
     scores = report["scores"]
     k = scores["from_bounce"]
     curves = [("ensemble", scores["reliability"])]

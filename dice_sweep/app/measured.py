@@ -13,7 +13,7 @@ from dice_sweep.measured.forecast import parse_fit
 from dice_sweep.measured.scatter import fitted_scatter
 from dice_sweep.measured.split import CONFIRM_FRACTION
 from dice_sweep.measured.tracks import load_tracks
-from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, replace_atomically, write_json
+from dice_sweep.outputs import FOLDER, JSON, MARKDOWN, check_outputs, make_folder, replace_atomically, write_json
 from dice_sweep.plotting import image_formats, plot_calibration, plot_residual_curves
 
 # fit's --effects parser and the at-a-bound warnings of fit and diagnose too
@@ -41,7 +41,7 @@ def run_calibrate(data_path, cfg, *, rate=None, angle="as-is", gaps="auto", json
 
 def _residual_pictures(residuals, prepared, segments, png_dir):
     """The residual picture: per-frame pose error against time from the first impact."""
-    png_dir.mkdir(parents=True, exist_ok=True)
+    make_folder(png_dir)
     path = png_dir / "residual_error_vs_time.png"
     plot_residual_curves(residual_curves(residuals, prepared, segments), path)
     return [str(path)]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dice_sweep.config import check_initial_clear
+from dice_sweep.config import check_computable, check_initial_clear
 from dice_sweep.roll import roll_config, sample_path
 
 
@@ -11,6 +11,7 @@ def roll(cfg, overrides=(), *, png_path=None, gif_path=None):
     draw the path to ``png_path`` and animate it to ``gif_path`` if asked.
     Returns (RollReport, pictures written)."""
     check_initial_clear(cfg, overrides)
+    check_computable(cfg, overrides)
     report = roll_config(cfg)
     written = []
     if png_path or gif_path:

@@ -6,6 +6,7 @@ import gzip
 import json
 from pathlib import Path
 
+from dice_sweep.config import check_computable
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured.simulate import csv_chunks, parse_noise, parse_range, provenance, sidecar_path, simulate_drops
 from dice_sweep.outputs import CSV, JSON, check_outputs, replace_atomically, write_json
@@ -60,6 +61,7 @@ def run_simulate_drops(cfg, out_path, tracks, **options):
     (``describe(out_path)`` for the user)."""
     check_outputs(("--output", out_path, CSV), ("--output", sidecar_path(out_path), JSON))
     _check_not_data(out_path)
+    check_computable(cfg)
     drops = simulate_drops(cfg, tracks, **options)  # checks every option before any work
     write_drops(drops, cfg, out_path)
     return drops

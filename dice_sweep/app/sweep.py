@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from dice_sweep.chaos.measures import shannon_entropy
-from dice_sweep.config import parse_config, require_grid
+from dice_sweep.config import check_computable, parse_config, require_grid
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import check_executor
 from dice_sweep.outputs import SWEEP_FILE, check_outputs
@@ -41,7 +41,7 @@ def draw_sweep_file(h5_path, png_path, *, box=None, dpi=150, warn: Callable[[str
     ``warn`` gets one line when some cells are not computed yet (an incomplete sweep or one
     shard); they are drawn grey as "not computed" either way. Returns ``png_path``.
     """
-    from dice_sweep.plotting import check_dpi, probability_figure, sweep_figure
+    from dice_sweep.plotting import check_dpi, probability_figure, save_figure, sweep_figure
 
     check_dpi(dpi)
     sweep_data = read_sweep(h5_path)
@@ -55,7 +55,7 @@ def draw_sweep_file(h5_path, png_path, *, box=None, dpi=150, warn: Callable[[str
     else:  # a probability sweep: the most likely side shaded by its probability, and the entropy
         entropy = np.where(sweep_data.computed, shannon_entropy(np.nan_to_num(sweep_data.probability)), np.nan)
         figure = probability_figure(sweep_data, entropy, title, box=box, dpi=dpi)
-    figure.savefig(png_path, dpi=dpi)
+    save_figure(figure, png_path, dpi)
     return png_path
 
 
@@ -82,6 +82,7 @@ def sweep(cfg, out_path, *, png_path=None, workers=None, shard=(0, 1), resume=Fa
     from dice_sweep.sweep import run_sweep
 
     require_grid(cfg)
+    check_computable(cfg)
     if refine_levels is not None:
         if resume or shard != (0, 1) or executor != "local":
             raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")

@@ -18,6 +18,7 @@ from dice_sweep.chaos.measures import UNDECIDED, shannon_entropy
 from dice_sweep.config import GRID_PARAMS, PARAM_UNITS, parse_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import workers_or_default
+from dice_sweep.outputs import written
 from dice_sweep.geometry import clear_of_surfaces
 from dice_sweep.physics.layout import STATE_COLUMNS
 from dice_sweep.mapper import Mapper, draw_streams, initial_states, roll_states
@@ -137,19 +138,20 @@ class ControlMap:
 
     def to_npz(self, path) -> None:
         """Save the maps (probability, most_likely, p_max, entropy, axes) as a NumPy .npz."""
-        np.savez_compressed(
-            path,
-            probability=self.probability,
-            most_likely=self.most_likely,
-            p_max=self.p_max,
-            entropy=self.entropy,
-            x_values=self.x_values,
-            y_values=self.y_values,
-            x_param=self.x_param,
-            y_param=self.y_param,
-            method=self.method,
-            sigmas=np.array([f"{k}={v!r}" for k, v in self.sigmas.items()]),
-        )
+        with written(path) as temporary:  # whole or nothing
+            np.savez_compressed(
+                temporary,
+                probability=self.probability,
+                most_likely=self.most_likely,
+                p_max=self.p_max,
+                entropy=self.entropy,
+                x_values=self.x_values,
+                y_values=self.y_values,
+                x_param=self.x_param,
+                y_param=self.y_param,
+                method=self.method,
+                sigmas=np.array([f"{k}={v!r}" for k, v in self.sigmas.items()]),
+            )
 
 
 def _smooth_axis(values, sigma_pixels, axis):

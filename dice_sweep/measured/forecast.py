@@ -215,6 +215,45 @@ def _parameter_draws(data, params, names, path):
     return None, sd, note
 
 
+BOUND_SLACK = 1e-9  # relative: a value the fit put on a bound, printed and read back
+
+
+def check_fit_values(data, source, cfg, path):
+    """Refuse a fit JSON edited by hand (issue 32) before anything is forecast from it: a
+    ``model`` that is no contact model, a value or a bootstrap draw outside its registry
+    bounds, a split whose confirmation share leaves no track to fit on (or none held out)."""
+    from dice_sweep.config import CONTACT_MODELS
+
+    model = data.get("model")
+    if model is not None and model not in CONTACT_MODELS:
+        raise _fit_error(path, f"model: {model!r} is not a contact model (allowed: {', '.join(CONTACT_MODELS)})")
+    bounds = {name: registry.param(name).bounds_of(cfg) for name in source.names}
+    rows = [("params", {name: source.params[name] for name in source.names})]
+    if source.draws is not None:
+        rows += [(f"bootstrap_draws.values[{k}]", dict(zip(source.names, row))) for k, row in enumerate(source.draws)]
+    for key, values in rows:
+        for name, value in values.items():
+            low, high = bounds[name]
+            slack = BOUND_SLACK * max(1.0, abs(low), abs(high)) if math.isfinite(high - low) else BOUND_SLACK
+            if not low - slack <= value <= high + slack:
+                raise _fit_error(path, f"{key}: {name} = {value:g} is outside its bounds [{low:g}, {high:g}] (docs/effects.md)")
+    if not 0.0 < source.confirm_fraction < 1.0:
+        raise _fit_error(path, f"split.confirm_fraction: {source.confirm_fraction:g} leaves no track to fit on or none held out "
+                               "(allowed: between 0 and 1, as the fit wrote it)")
+
+
+def check_split(data, source, trackset, path):
+    """Refuse a fit whose split, applied to ``trackset``, cannot be the one it was made on: fewer
+    tracks on either side than the fit says it fitted (``train_tracks``) or scored
+    (``test_tracks``), so that the held-out tracks would include fitted ones."""
+    select_set, confirm_set = trackset.split(source.confirm_fraction, source.seed)
+    for key, held in (("train_tracks", select_set), ("test_tracks", confirm_set)):
+        claimed = data.get(key)
+        if _number(claimed) and claimed > len(held.tracks):
+            raise _fit_error(path, f"{key}: {claimed:g} tracks, but its split (confirm_fraction {source.confirm_fraction:g}, seed "
+                                   f"{source.seed}) of {trackset.path} has {len(held.tracks)} there: a split of other data, or edited")
+
+
 def sample_params(source, cfg, count, rng):
     """``count`` parameter dicts: draws of the bootstrap (without replacement when there are
     enough), or of the Gaussians, clipped to the registry's bounds."""

@@ -32,6 +32,7 @@ import numpy as np
 
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.geometry import DOWN, inertia_ratio
+from dice_sweep.inputs import not_a_file
 from dice_sweep.measured.impacts import rest_pose, table_level, track_impacts
 
 __all__ = ["Track", "TrackSet", "load_tracks", "ANGLE_MODES", "GAP_MODES"]
@@ -202,6 +203,9 @@ def _open_text(path):
 
 def _read_rows(path):
     """Header names (lower case), data rows and the file line number of each row."""
+    problem = not_a_file(path)  # a FIFO or /dev/zero would hang the reader
+    if problem:
+        raise DiceSweepError(f"{path}: file: {problem}")
     try:
         with _open_text(path) as file:
             reader = csv.reader(file)

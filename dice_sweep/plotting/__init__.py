@@ -38,6 +38,7 @@ from dice_sweep.plotting.common import (  # noqa: F401
     image_formats,
     outcome_colors,
     panel_figure,
+    save_figure,
 )
 from dice_sweep.plotting.maps import (  # noqa: F401
     check_box,

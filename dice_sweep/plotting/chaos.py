@@ -9,6 +9,7 @@ import numpy as np
 from matplotlib.colors import hsv_to_rgb
 from dice_sweep.plotting.maps import draw_outcome_map
 from dice_sweep.plotting.common import (
+    save_figure,
     VIOLET_HUE,
     panel_figure,
     axis_labels,
@@ -54,7 +55,7 @@ def plot_scalar_maps(panels, png_path, *, dpi=100):
     fig, axes = panel_figure(len(panels), dpi)
     for ax, panel in zip(axes, panels):
         draw_scalar_map(ax, **panel)
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
 
 
@@ -90,7 +91,7 @@ def plot_uncertainty_curves(curves, labels, png_path, *, title=None, dpi=100):
     ax.set_ylabel("uncertain share f(eps)")
     ax.legend(fontsize="x-small")
     ax.set_title(title or "uncertainty exponent: f ~ eps^alpha on the fitted range (lines)", fontsize="medium")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
 
 
@@ -125,5 +126,5 @@ def plot_control_map(control, png_path, x_label, y_label, *, title=None, dpi=100
                     vmin=0.0, vmax=math.log(control.sides), cmap="magma")
     sigmas = ", ".join(f"sigma({name}) = {value:g}" for name, value in control.sigmas.items())
     fig.suptitle(title or f"{control.method.replace('_', ' ')}: {sigmas}", fontsize="medium")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)

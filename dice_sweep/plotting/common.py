@@ -2,12 +2,15 @@
 and resolutions allowed, axis labels, a row of panels, a map of one number per cell.
 """
 
+from pathlib import Path
+
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import hsv_to_rgb
 from matplotlib.figure import Figure
 
 from dice_sweep.errors import DiceSweepError
+from dice_sweep.outputs import written
 
 
 VIOLET_HUE = 0.78  # HSV hue of the rainbow's last side; 1.0 would wrap back to red
@@ -37,6 +40,14 @@ def image_formats():
     """File extensions (with the dot) of the pictures a figure can be saved as: the formats
     of matplotlib's Agg canvas, ``.png`` first, then e.g. ``.pdf``, ``.svg``."""
     return tuple(f".{name}" for name in sorted(FigureCanvasAgg.get_supported_filetypes(), key=lambda name: (name != "png", name)))
+
+
+def save_figure(fig, path, dpi):
+    """Save ``fig`` to ``path`` (its format by the extension) whole or not at all: under a
+    temporary name, renamed once complete (dice_sweep.outputs.written). Returns ``path``."""
+    with written(path) as temporary:
+        fig.savefig(temporary, dpi=dpi)
+    return Path(path)
 
 
 def check_dpi(dpi, option="--dpi"):

@@ -8,7 +8,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from dice_sweep.plotting.common import outcome_colors
+from dice_sweep.plotting.common import outcome_colors, save_figure
 from dice_sweep.plotting.maps import draw_outcome_map, outcome_title
 
 FORECAST_FIGSIZE = (10, 4)
@@ -57,7 +57,7 @@ def plot_reliability(curves, png_path, *, title=None, dpi=100):
     counts.set_ylabel("(track, side) pairs per bin")
     if title:
         fig.suptitle(title, fontsize="medium")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
 
 
@@ -108,7 +108,7 @@ def plot_skill_by_bounce(by_bounce, sides, png_path, *, title=None, dpi=100):
         ax.set_xticks([b["from_bounce"] for b in by_bounce])
     if title:
         fig.suptitle(title, fontsize="medium")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
 
 
@@ -133,5 +133,5 @@ def plot_release_map(release, cfg, png_path, *, dpi=120):
     ax.scatter(x[~held], y[~held], s=9, c=colors[side[~held]], edgecolors="black", linewidths=0.4, label="selection drops")
     ax.scatter(x[held], y[held], s=26, c=colors[side[held]], edgecolors="black", linewidths=0.8, label="held-out drops")
     ax.legend(fontsize="x-small", loc="upper right", framealpha=0.8)
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)

@@ -14,6 +14,7 @@ from matplotlib.patches import Rectangle
 
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.plotting.common import (
+    save_figure,
     BOX_COLOR,
     MAX_SIDE_LABELS,
     NOT_COMPUTED_COLOR,
@@ -296,7 +297,7 @@ def plot_comparison(sweeps, titles, png_path, *, dpi=100):
             extent=sweep.extent,
             computed=sweep.computed,
         )
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
 
 
@@ -327,5 +328,5 @@ def plot_refinement(sweep, refine_level, levels, png_path, *, dpi=100):
     simulated = np.mean(np.asarray(refine_level) == levels)
     draw_scalar_map(ax_level, refine_level, *axes, label="level (0 = coarsest)", vmin=0, vmax=levels, extent=sweep.extent,
                     title=f"level of each pixel's roll; {100 * simulated:.1f} % rolled at their own centre ({levels})")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)

@@ -8,6 +8,7 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from dice_sweep.plotting.common import save_figure
 
 
 def plot_residual_curves(curves, png_path, *, dpi=100, bin_width=0.008):
@@ -43,7 +44,7 @@ def plot_residual_curves(curves, png_path, *, dpi=100, bin_width=0.008):
     # outside the axes: with every track held out (cross-fitting) the curves fill the axes, and
     # a legend inside covered the line at the first impact
     fig.legend(loc="outside lower center", ncols=4, fontsize="small")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
 
 
@@ -93,5 +94,5 @@ def plot_calibration(result, png_path, *, dpi=120, bins=40):
         ax.set_xlabel(name)
         ax.set_ylabel("impacts")
     fig.suptitle(f"{Path(result.path).name}: coefficients per impact", fontsize="medium")
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)

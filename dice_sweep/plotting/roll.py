@@ -12,7 +12,9 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 
 from dice_sweep.geometry import outline
+from dice_sweep.outputs import written
 from dice_sweep.plotting.common import (
+    save_figure,
     ANIMATION_DPI,
     ANIMATION_FIGSIZE,
     MAX_ANIMATION_FRAMES,
@@ -109,7 +111,7 @@ def plot_roll(cfg, report, png_path, path_sampler, *, frames=12, dpi=150):
     outline_rows = path[:: PATH_POINTS_PER_FRAME][:frames]
     for i, state in enumerate(outline_rows):
         _add_die(ax, cfg, state, alpha=0.25 + 0.75 * (i + 1) / len(outline_rows))  # later = darker
-    fig.savefig(png_path, dpi=dpi)
+    save_figure(fig, png_path, dpi)
     return Path(png_path)
 
 
@@ -150,7 +152,7 @@ def animate_roll(cfg, report, gif_path, path_sampler, *, fps=30, max_frames=MAX_
     # The clock makes every frame differ, so the GIF writer never merges frames of a die at rest.
     clock = ax.text(0.02, 0.95, "", transform=ax.transAxes, va="top", fontsize="small")
     writer = PillowWriter(fps=fps)
-    with writer.saving(fig, str(gif_path), dpi=ANIMATION_DPI):
+    with written(gif_path) as temporary, writer.saving(fig, str(temporary), dpi=ANIMATION_DPI):
         for t, state in zip(times, path):
             _move_die(die, cfg, state)
             clock.set_text(f"t = {t:.3f} s")

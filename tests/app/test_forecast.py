@@ -146,6 +146,19 @@ FITS = {
     "another die": (None, "a fit of a die with n = 5"),
     "another model": (None, "a fit of another model"),
     "bad draws": (None, "bootstrap_draws"),
+    # issue 32: fits edited by hand
+    "beta_normal 5": (None, "params: beta_normal = 5 is outside its bounds [0, 1]"),
+    "a draw out of bounds": (None, "bootstrap_draws.values[1]: beta_normal = 1.7 is outside its bounds [0, 1]"),
+    "unknown model": (None, "model: 'no_such_model' is not a contact model"),
+    "confirm_fraction 1": (None, "split.confirm_fraction: 1 leaves no track to fit on"),
+    "a split of other data": (None, "train_tracks: 28 tracks, but its split"),
+}
+EDITED = {
+    "beta_normal 5": {"params": {"beta_normal": {"value": 5.0}, "beta_tangential": {"value": -0.35}}},
+    "a draw out of bounds": {"bootstrap_draws": {"names": list(PAPER), "values": [[0.2, -0.35], [1.7, -0.35]]}},
+    "unknown model": {"model": "no_such_model"},
+    "confirm_fraction 1": {"split": {"confirm_fraction": 1.0, "seed": 0}, "train_tracks": 28, "test_tracks": 39},
+    "a split of other data": {"train_tracks": 28, "test_tracks": 12},  # 30 tracks: 0.3 of them cannot have fitted 28
 }
 
 
@@ -160,10 +173,27 @@ def test_bad_fit_json_is_a_one_line_error(drops, tmp_path, case):
         fit_json(fit, die={"sides": 5, "circumradius": 0.04})
     elif case == "another model":
         fit_json(fit, effects=["coulomb_friction"])
+    elif case in EDITED:
+        fit_json(fit, **EDITED[case])
     else:
         fit_json(fit, bootstrap_draws={"names": ["beta_normal"], "values": [[0.2]]})
     one_line_error(invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json"), "--fit", str(fit), fragment)
     assert not (tmp_path / "f.json").exists()
+
+
+def test_the_fit_as_fit_writes_it_passes_the_checks_of_an_edited_one(drops):
+    """The control of the cases above: the counts and model a real fit of these drops gives."""
+    from dice_sweep.app.forecast import fit_source
+    from dice_sweep.measured.forecast import check_split
+    from dice_sweep.measured.tracks import load_tracks
+
+    data, fit = drops
+    cfg = load_config(SQUARE)
+    written = json.loads(fit.read_text())
+    trackset = load_tracks(data, sides=4, circumradius=cfg.die.circumradius)
+    select_set, confirm_set = trackset.split(0.3, 0)
+    written.update(model="paper", train_tracks=len(select_set.tracks), test_tracks=len(confirm_set.tracks))
+    check_split(written, fit_source(written, fit, cfg), trackset, fit)
 
 
 def test_a_missing_fit_file_and_a_bounce_no_track_has(drops, tmp_path):

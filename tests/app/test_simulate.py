@@ -47,7 +47,7 @@ def test_a_failure_while_writing_leaves_no_data_file(drops, tmp_path, monkeypatc
         raise OSError("disk full")
 
     monkeypatch.setattr(app, "csv_chunks", broken)
-    with pytest.raises(OSError):
+    with pytest.raises(DiceSweepError, match=r"d.csv: cannot be written: disk full; nothing was written to it$"):  # issue 32: named
         app.write_drops(made, cfg, tmp_path / "d.csv")
     assert list(tmp_path.iterdir()) == []
 
