@@ -22,7 +22,6 @@ import numpy as np
 from dice_sweep.physics.flight import (
     NO_CONTACT,
     STALLED,
-    SURF_RIGHT,
     SURF_TABLE,
     advance_flight,
     corner_offset,
@@ -123,9 +122,9 @@ STICK_HEIGHT = 1e-8  # x R: a corner bouncing lower than this has come to rest (
 # constant tiny amplitude (test_loaded_die_prefers_the_heavy_side ran out of events on it).
 CHATTER_LIMIT = 1000
 REST_ENERGY = 1e-9  # x g rho_max: a decided die this close to lying still is at rest
-# Wall impacts in a row, each ending a pivot that turned the die into that wall with less
-# kinetic energy than REST_ENERGY, after which a die leaning on the wall is at rest: without
-# it a propped die traded pivots and wall impacts at ~1e-9 m/s until the event budget (issue 33).
+# Wall impacts in a row of a die on a table corner, leaning into the wall with less kinetic
+# energy than REST_ENERGY, after which it is at rest there (propped): without it such a die
+# traded pivots and wall impacts at ~1e-9 m/s until the event budget (issue 33).
 PROPPED_CYCLES = 16
 RESTING_GAP = 1e-9  # x rho_max: a corner this close above the table rests on it (a flat die)
 DECIDED_SPEED_MARGIN = 1e-9  # relative: a sliding die counts as decided just below the barrier's speed
@@ -351,12 +350,12 @@ def _slide(s, fpar, tau):
 
 
 @numba.njit(cache=True)
-def _leaning_still(s, fpar, surf, px):
-    """True if a die that pivoted on a table corner at x = ``px`` into wall ``surf`` and hit it
-    is at rest there: gravity turns it into that wall (its centre of mass between the corner
-    and the wall) and its kinetic energy is below REST_ENERGY g rho_max."""
+def _leaning_still(s, fpar, px):
+    """True if a die on a table corner at x = ``px`` that just hit a wall (the nearer one) is at
+    rest there: gravity turns it into that wall (its centre of mass between the corner and the
+    wall) and its kinetic energy is below REST_ENERGY g rho_max."""
     kinetic = specific_energy(s, fpar) - fpar[FP_G] * s[1]
-    into = s[0] > px if surf == SURF_RIGHT else s[0] < px
+    into = s[0] > px if s[0] > 0.0 else s[0] < px
     return into and kinetic < REST_ENERGY * fpar[FP_G] * fpar[FP_RHO_MAX]
 
 
@@ -517,9 +516,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         chatter = chatter + 1 if same_corner else 0
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
+        walls_before = counts[C_WALL]  # a wall in this impact, alone or shared with the table
         u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts)
-        if surf != SURF_TABLE:
-            propped = propped + 1 if came_from_pivot and _leaning_still(s, fpar, surf, px) else 0
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
@@ -537,6 +535,9 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             px = s[0] + rx  # the corner's (arc centre's) x
             chi = math.atan2(-ry, -rx)
             counts[C_PIVOTS] += 1
+        if counts[C_WALL] > walls_before:
+            # on a table corner (the pivot just ended, or one begun by this shared impact)
+            propped = propped + 1 if (came_from_pivot or pivoting) and _leaning_still(s, fpar, px) else 0
         energy = specific_energy(s, fpar)
         if decided < 0:
             # decided_side's own first test, made here: most impacts leave the die above it,
