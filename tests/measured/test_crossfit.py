@@ -13,18 +13,14 @@ from dice_sweep.measured import consistency
 from dice_sweep.measured import diagnose as loop
 from dice_sweep.measured import fit as shooting
 from dice_sweep.measured.split import MIN_TRACKS, cross_fit_folds, cross_fit_tracks
-from dice_sweep.measured.tracks import load_tracks
-from tests.measured.cases import DECLARED_RIGID, NOISE, RADIUS, TRUTH
-from tests.measured.independent import Truth, simulate_drops, write_csv
+from tests.measured.cases import DECLARED_RIGID, truth_tracks
 
 CFG = parse_config(DECLARED_RIGID)
 
 
 @pytest.fixture(scope="module")
 def tracks(tmp_path_factory):
-    path = tmp_path_factory.mktemp("crossfit") / "drops.csv"
-    write_csv(path, simulate_drops(Truth(**TRUTH), 20, 3, rate=500.0, noise=NOISE))
-    return load_tracks(path, sides=4, circumradius=RADIUS)
+    return truth_tracks(tmp_path_factory.mktemp("crossfit"), 20, 3)
 
 
 def test_a_subset_of_segments_is_the_segments_of_its_tracks(tracks):

@@ -10,17 +10,14 @@ from dice_sweep.config import parse_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.measured import noise
 from dice_sweep.measured.tracks import load_tracks
-from tests.measured.cases import DECLARED_RIGID, RADIUS, TRUTH
-from tests.measured.independent import Truth, simulate_drops, write_csv
+from tests.measured.cases import DECLARED_RIGID, RADIUS, truth_tracks
 
 SIGMA = (3e-4, 6e-3)  # m, rad
 
 
 @pytest.fixture(scope="module")
 def trackset(tmp_path_factory):
-    path = tmp_path_factory.mktemp("noise") / "drops.csv"
-    write_csv(path, simulate_drops(Truth(**TRUTH), 24, 3, rate=500.0, noise=SIGMA))
-    return load_tracks(path, sides=4, circumradius=RADIUS)
+    return truth_tracks(tmp_path_factory.mktemp("noise"), 24, 3, noise=SIGMA)
 
 
 def test_the_noise_floor_finds_the_trackers_sigmas(trackset):
