@@ -18,7 +18,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT.parent / "shared" / "data" / "mcube_square_drops" / "drops.csv.gz"
-TARGET = 120.0  # s
+TARGET = 180.0  # s: issue 30, diagnose with cross-fitting, causes and proposals, on 2 cores
 
 
 def main():
