@@ -33,7 +33,7 @@ def load_fit_json(path):
     if problem:
         raise DiceSweepError(f"--fit: {path}: {problem}")
     try:
-        text = Path(path).read_text()
+        text = Path(path).read_bytes()  # decoded by json.loads, inside the handler below
     except OSError as error:
         raise DiceSweepError(f"--fit: {path}: cannot be read ({error.strerror or error}) "
                              "(allowed: the JSON written by dice-sweep fit --json or dice-sweep diagnose --json)") from None

@@ -243,12 +243,10 @@ def test_a_fit_file_is_read_with_one_line_errors(tmp_path):
         read_fit_file(tmp_path, cfg)  # a folder
 
 
-@pytest.mark.xfail(strict=True, raises=UnicodeDecodeError, reason=(
-    "known defect (issue 29, found here): read_fit_file reads the text before its UnicodeDecodeError "
-    "handler, so a fit file that is not UTF-8 ends in a traceback, not a one-line error"))
-def test_a_fit_file_that_is_not_text_is_a_one_line_error(tmp_path):
-    (tmp_path / "binary.json").write_bytes(b"\xff\xfe")
-    with pytest.raises(DiceSweepError, match="not JSON"):
+@pytest.mark.parametrize("content", [b"\xff\xfe", b"\x80\x81{}", b"{\"a\": \"\xe9\"}"])
+def test_a_fit_file_that_is_not_text_is_a_one_line_error(tmp_path, content):
+    (tmp_path / "binary.json").write_bytes(content)
+    with pytest.raises(DiceSweepError, match=f"^--fit: {tmp_path / 'binary.json'}: not JSON"):
         read_fit_file(tmp_path / "binary.json", load_config(SQUARE))
 
 
