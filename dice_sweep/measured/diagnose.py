@@ -775,8 +775,7 @@ def diagnose(trackset, cfg, *, seed=0, folds=FOLDS, cross_folds=CROSS_FOLDS, can
     named = list(current.spec.effects)
     signatures_before = residual_signatures(prepared, seg_all, lin_before.residual, cfg.die.circumradius)
     halves = (cross.fold < max(cross.folds // 2, 1))[seg_all.track]
-    judged = consistency(cfg, current, seg_all, halves, signatures_before, floor, [seed, 99], sigmas, bootstrap,
-                         mapper=lambda f, tasks: _map(f, tasks, workers))
+    judged = consistency(cfg, current, red, seg_all, halves, signatures_before, floor, [seed, 99], sigmas, bootstrap)
     after_error = shooting.rms(e_after)
     median_before, median_before_ci = median_interval(e_before, rng, bootstrap)
     median_after, median_after_ci = median_interval(e_after, rng, bootstrap)

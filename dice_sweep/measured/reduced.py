@@ -133,6 +133,33 @@ def cv_errors(red, segments, fold, names, values, cfg, projected=None):
     return np.sqrt(np.maximum(e2, 0.0) / np.maximum(counts, 1))
 
 
+def part_reduced(red, segments, keep):
+    """The reduced problem of the segments where ``keep`` (bool per segment) holds, cut from
+    ``red`` of all ``segments`` (each segment's blocks are its own: its state is eliminated
+    alone), with those segments (:meth:`~dice_sweep.measured.fit.Segments.subset`)."""
+    keep = np.asarray(keep, dtype=bool)
+    rows = keep[segments.segment_rows]
+    lin = red.lin
+    part = segments.subset(keep)
+    cut = Linearisation(lin.residual[rows], lin.weight[rows], lin.jac_params[rows], lin.jac_states[rows])
+    return reduce(cut, part), part
+
+
+def part_step(red, segments, keep, names, values, cfg):
+    """A part's values of the parameters ``names``: one Newton step of its reduced problem from
+    the fit on all tracks (``values``; the estimator of the bootstrap and of the re-splits).
+    What is left of the gradient on all tracks (a rough cost, a bound) is taken off in
+    proportion to the part's segments, as :func:`project` spreads it. Returns (values, the
+    part's reduced problem, its segments)."""
+    red_part, part = part_reduced(red, segments, keep)
+    if not names:
+        return dict(values), red_part, part
+    left = project(red, segments, centre=False).b.sum(axis=0)
+    b = project(red_part, part, centre=False).b.sum(axis=0) - left * (part.count / segments.count)
+    step = _clip_step(values, names, _solve(red_part.M.sum(axis=0), b), cfg)
+    return dict(values, **{n: float(values[n] + step[k]) for k, n in enumerate(names)}), red_part, part
+
+
 def bootstrap_params(red, segments, names, values, cfg, rng, draws=BOOTSTRAP):
     """One-step bootstrap over tracks: (draws, p) parameter values."""
     b = project(red, segments).b

@@ -94,7 +94,7 @@ def test_an_effect_no_split_could_refit_is_a_stand_in():
         return mapper
 
     halves = np.arange(count) < count // 2
-    args = (None, fit, segments, halves, [], 1e-4, 0, None, 10)
+    args = (None, fit, None, segments, halves, [], 1e-4, 0, None, 10)
     stuck = consistency.consistency(*args, mapper=parts(1e-5))["coulomb_friction"]
     assert stuck["cause"] == "stand_in" and any(f.startswith("untested") for f in stuck["consistency"]["failed"])
     refit = consistency.consistency(*args, mapper=parts(1e-3))["coulomb_friction"]

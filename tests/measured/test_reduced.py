@@ -17,6 +17,7 @@ import pytest
 from dice_sweep.config import default_config, load_config
 from dice_sweep.measured import reduced
 from dice_sweep.measured.blocks import Linearisation
+from dice_sweep.measured.fit import Segments
 
 ROOT = Path(__file__).resolve().parents[2]
 NAMES = ["beta_normal", "beta_tangential"]
@@ -24,7 +25,7 @@ VALUES = {"beta_normal": 0.5, "beta_tangential": 0.0}  # far from the bounds: no
 
 
 class FakeSegments:
-    """The attributes of ``fit.Segments`` the reduced problem reads."""
+    """The attributes of ``fit.Segments`` the reduced problem reads, and its ``subset``."""
 
     def __init__(self, rng, tracks=12):
         sizes, track = [], []
@@ -44,6 +45,14 @@ class FakeSegments:
         self.track_rows = self.track[self.segment_rows]
         self.track_starts = np.searchsorted(self.track_rows, np.arange(self.tracks + 1))
         self.track_segment_starts = np.searchsorted(self.track, np.arange(self.tracks + 1))
+        rows = self.starts[-1]
+        self.times, self.measured, self.predicted = np.zeros(rows), np.zeros((rows, 3)), np.zeros(rows, bool)
+        self.guess = np.zeros((self.count, 6))
+        if not hasattr(self, "frame_rows"):  # each row its own frame, unless shared (SharedFrameSegments)
+            self.frame_rows, self.frames = np.arange(rows), int(rows)
+
+    def subset(self, keep):
+        return Segments.subset(self, keep)
 
 
 @pytest.fixture
@@ -57,21 +66,27 @@ def problem():
     return seg, lin, fold
 
 
+def _direct_step(seg, lin, kept, residual):
+    """One Gauss-Newton step of the whole linear problem of the segments ``kept`` (their rows,
+    the parameters and every kept segment's state) by weighted ``lstsq``: (rows, joint step)."""
+    sw = np.sqrt(lin.weight)
+    rows = np.flatnonzero(np.isin(seg.segment_rows, kept))
+    design = np.zeros((rows.size * 3, 2 + 6 * kept.size))
+    design[:, :2] = (lin.jac_params[rows] * sw[rows, None, None]).reshape(-1, 2)
+    column = {s: 2 + 6 * i for i, s in enumerate(kept)}
+    for i, r in enumerate(rows):
+        c = column[seg.segment_rows[r]]
+        design[3 * i:3 * i + 3, c:c + 6] = lin.jac_states[r] * sw[r]
+    target = -(residual[rows] * sw[rows, None]).reshape(-1)
+    return rows, design, np.linalg.lstsq(design, target, rcond=None)[0]
+
+
 def _direct_cv(seg, lin, fold, residual):
     """Held-out per-track RMS errors by direct weighted least squares."""
     sw = np.sqrt(lin.weight)
     errors = np.zeros(seg.tracks)
     for k in np.unique(fold):
-        kept = np.flatnonzero(fold[seg.track] != k)
-        rows = np.flatnonzero(np.isin(seg.segment_rows, kept))
-        design = np.zeros((rows.size * 3, 2 + 6 * kept.size))
-        design[:, :2] = (lin.jac_params[rows] * sw[rows, None, None]).reshape(-1, 2)
-        column = {s: 2 + 6 * i for i, s in enumerate(kept)}
-        for i, r in enumerate(rows):
-            c = column[seg.segment_rows[r]]
-            design[3 * i:3 * i + 3, c:c + 6] = lin.jac_states[r] * sw[r]
-        target = -(residual[rows] * sw[rows, None]).reshape(-1)
-        step = np.linalg.lstsq(design, target, rcond=None)[0][:2]
+        step = _direct_step(seg, lin, np.flatnonzero(fold[seg.track] != k), residual)[2][:2]
         for s in np.flatnonzero(fold[seg.track] == k):
             r = np.arange(seg.starts[s], seg.starts[s + 1])
             moved = residual[r] + lin.jac_params[r] @ step
@@ -199,3 +214,25 @@ def test_a_parameter_without_information_has_no_interval_and_excludes_nothing():
     info[2, 1, 1] = 1e-3
     out = reduced.describe_params(fit, draws, cfg, SimpleNamespace(M=info))
     assert out["contact_time"]["identified"] and reduced.null_excluded("contact_time", out["contact_time"]["ci95"], cfg)
+
+
+def test_a_part_step_is_the_parts_own_least_squares_step(problem):
+    """Issue 30's consistency test fits each side of a split by one Newton step of its reduced
+    problem (reduced.part_step): at an optimum of all tracks it is the direct least-squares step
+    of the kept segments' rows alone, their states refitted."""
+    seg, lin, _ = problem
+    cfg = load_config(ROOT / "configs" / "square_drops.toml")
+    rows, design, step = _direct_step(seg, lin, np.arange(seg.count), lin.residual)
+    # the residual that is left at the optimum of all tracks: orthogonal to every column
+    sw = np.sqrt(lin.weight)[rows, None]
+    optimum = Linearisation(lin.residual + (design @ step).reshape(-1, 3) / sw, lin.weight, lin.jac_params, lin.jac_states)
+    red = reduced.reduce(optimum, seg)
+    keep = np.arange(seg.count) % 3 == 0
+    values, _, part = reduced.part_step(red, seg, keep, NAMES, VALUES, cfg)
+    want = _direct_step(seg, optimum, np.flatnonzero(keep), optimum.residual)[2][:2]
+    assert want[0] != pytest.approx(0.0, abs=1e-6)  # the part has a step of its own to take
+    np.testing.assert_allclose([values[n] - VALUES[n] for n in NAMES], want, rtol=1e-6, atol=1e-12)
+    assert part.count == keep.sum() and part.tracks == np.unique(seg.track[keep]).size
+    # all segments kept: the fit on all tracks itself, also with a gradient left (a rough cost)
+    whole, _, _ = reduced.part_step(reduced.reduce(lin, seg), seg, np.ones(seg.count, bool), NAMES, VALUES, cfg)
+    np.testing.assert_allclose([whole[n] for n in NAMES], [VALUES[n] for n in NAMES], atol=1e-12)
