@@ -248,6 +248,11 @@ class _Cells:
                    level_values(grid.x.min, grid.x.max, grid.x.num), level_values(grid.y.min, grid.y.max, grid.y.num),
                    cfg.die.sides)
 
+    @property
+    def each(self) -> str:
+        """What a roll of a cell is, for the lines on stderr: M draws in a probability sweep."""
+        return f" (a roll of a cell: its {self.draws} draws)" if self.draws > 1 else ""
+
     def roll(self, xs, ys, rows, cols, workers, on_chunk) -> dict[str, np.ndarray]:
         """Roll cells (rows[k], cols[k]) of a level with centres xs, ys; 1-D maps by dataset."""
         states = self.plane.cells(xs[cols], ys[rows])
@@ -300,7 +305,7 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
             decision = (
                 f"--refine {levels}: rolled the full {grid.y.num} x {grid.x.num} grid instead, after level {level - 1}: "
                 f"{100 * share:.0f} % of its cells lie on a boundary, so refining would take about {estimate} more "
-                f"rolls, the full grid {full}"
+                f"rolls, the full grid {full}{cells.each}"
             )
             if log is not None:
                 log(decision)
@@ -324,7 +329,7 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
             rolls += _roll_and_follow(unproven, maps, refine_level, level, cells, xs, ys, workers, on_chunk)
         rolls_per_level.append(rolls)
     rolls = sum(rolls_per_level)
-    decision = f"--refine {levels}: refined in {rolls} rolls, {100 * rolls / full:.1f} % of the full grid's {full}"
+    decision = f"--refine {levels}: refined in {rolls} rolls, {100 * rolls / full:.1f} % of the full grid's {full}{cells.each}"
     if rolls > full:
         decision += "; more than the full grid, as its coarse levels lie almost all on boundaries: use fewer levels"
     if log is not None:
