@@ -416,6 +416,8 @@ class RefineSummary:
         Wall time.
     fell_back : bool
         True if the full grid was rolled instead of refining.
+    draws : int
+        Rolls of each cell rolled (a probability sweep's M; ``rolls`` counts cells).
     """
 
     path: str
@@ -425,6 +427,7 @@ class RefineSummary:
     simulated: int
     seconds: float
     fell_back: bool = False
+    draws: int = 1
 
     def describe(self) -> str:
         """One line for the user."""
@@ -432,7 +435,7 @@ class RefineSummary:
         full = ny * nx
         how = "--refine {}: the full grid, as refining could not save rolls" if self.fell_back else "refined over {} levels"
         return (
-            f"{self.path} ({ny} x {nx}, {how.format(self.levels)}): {self.rolls} rolls "
+            f"{self.path} ({ny} x {nx}, {how.format(self.levels)}): {self.rolls * self.draws} rolls "
             f"({100 * self.rolls / full:.1f} % of a full sweep) in {self.seconds:.1f} s, "
             f"{self.simulated} pixels ({100 * self.simulated / full:.1f} %) rolled at their own centre, complete"
         )
@@ -501,7 +504,7 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
     write_refined(out_path, cfg, refined)
     return RefineSummary(
         str(out_path), refined.refine_level.shape, levels, refined.rolls, int(refined.simulated.sum()),
-        time.perf_counter() - started, refined.fell_back,
+        time.perf_counter() - started, refined.fell_back, cfg.scatter.draws,
     )
 
 
