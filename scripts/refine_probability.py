@@ -17,11 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from dice_sweep.config import load_config
+from dice_sweep.effects import get_key, noise_model
 from dice_sweep.refine import refine_maps
 from dice_sweep.storage import probability_names, read_sweep
 from dice_sweep.sweep import run_sweep
 
-LAW_KEYS = ("corner", "corner_floor", "flat", "flat_floor")
+LAW_KEYS = tuple(p.key for p in noise_model("scattered_impacts").params)  # the spreads and floors, from the registry
 
 
 def main():
@@ -34,8 +35,8 @@ def main():
     parser.add_argument("--scale", type=float, default=1.0, help="factor on the law's spreads and floors")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
-    spreads = load_config(args.spreads).scatter
-    law = [f"scatter.{key}={args.scale * getattr(spreads, key)!r}" for key in LAW_KEYS]
+    spreads = load_config(args.spreads)
+    law = [f"{key}={args.scale * get_key(spreads, key)!r}" for key in LAW_KEYS]
     cfg = load_config(args.config, [f"grid.x.num={args.num}", f"grid.y.num={args.num}", f"scatter.draws={args.draws}", *law])
     started = time.perf_counter()
     refined = refine_maps(cfg, args.levels, workers=args.workers, fallback=False)
