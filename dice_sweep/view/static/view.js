@@ -343,6 +343,13 @@
         `(boxes of ${e.box_size} x ${e.box_size} cells; ${e.boundary_boxes} of ${e.boxes} on a boundary)` +
         (e.Sbb_above_log2 ? "; Sbb > ln 2: the boundary is fractal." : ".")
       : "Basin entropy: needs a whole map of at least 5 x 5 cells.";
+    const m = stats.probability; // a probability map: the shares above are of the most likely sides
+    if (m) {
+      const [low, high] = m.predictable_share_range_from_draws;
+      $("entropy").textContent += ` ${m.draws} draws per cell: one side at p >= ${m.predictable_probability} on ` +
+        `${pct(m.predictable_share)} of the cells (${pct(low)} to ${pct(high)} within the draws), mean outcome entropy ` +
+        `${m.basin_entropy_nats.toFixed(3)} nats (${m.basin_entropy_miller_madow_nats.toFixed(3)} Miller-Madow).`;
+    }
   }
 
   function describeLayer(l) {
