@@ -73,7 +73,7 @@ class ConfigKey:
 
     @property
     def described(self):
-        """Its unit, its choices or "integer", for help texts."""
+        """Its unit, else its choices, else its type's name, for help texts."""
         return self.unit or "|".join(self.choices) or self.kind.__name__
 
     def packed(self, cfg, value):
@@ -378,7 +378,6 @@ EFFECTS = (
         signature_note="frames predicted through an impact miss: impacts happen at a height off by the same length every time",
     ),
 )
-
 
 
 def _free_fall_speed(cfg):
