@@ -274,7 +274,7 @@ def _describe_roll(report):
 @click.option("--resume", is_flag=True, help="Finish an interrupted OUT.h5 of the same config and shard.")
 @_set_option
 @click.option("--quiet", is_flag=True, help="No progress bar and no summary line.")
-@click.option("--refine", "refine_levels", type=int, metavar="LEVELS", help="Sweep 2^LEVELS times coarser, then refine only where neighbours disagree; rolls the full grid instead where refining cannot save rolls, and says which on stderr (docs/chaos.md).")
+@click.option("--refine", "refine_levels", type=int, metavar="LEVELS", help="Sweep 2^LEVELS times coarser, then refine only where neighbours disagree (a probability sweep: where a cell's draws do not all agree); rolls the full grid instead where refining cannot save rolls, and says which on stderr (docs/chaos.md).")
 @click.option("--executor", default="local", show_default=True, metavar="local|dask", help="Where tiles are computed: forked local workers, or tasks on a dask.distributed cluster (pip install 'dice-sweep[dask]').")
 @click.option("--scheduler", metavar="ADDRESS", help="With --executor dask: the scheduler, e.g. tcp://10.0.0.5:8786 [default: start a local cluster of --workers processes].")
 def sweep(config, out_path, png_path, workers, shard, resume, overrides, quiet, refine_levels=None, executor="local", scheduler=None):

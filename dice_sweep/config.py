@@ -20,7 +20,7 @@ beta_tangential = -0.35, beta_normal = 0.2, dt = 0.001 s, R = 1.9/sqrt(2) cm):
                  # corner_floor = 0, flat_floor = 0 (sqrt(g R)): its floor (all 0: the
                  # deterministic law), draws = 1 per start, seed = 0 (docs/physics.md)
 
-The keys of [effects] and [tracking] come from the effect registry (dice_sweep/effects.py).
+The keys of [effects], [tracking] and [scatter] come from the effect registry (dice_sweep/effects.py).
     [integrator] # method = "event" | "fixed_step", dt = 0.001 (s), t_max = 30 (s), max_events
     [grid]       # x = { param, min, max, num }, y = { ... }; no [grid]: a single roll
 
@@ -40,6 +40,7 @@ import numpy as np
 
 from dice_sweep import effects as effect_registry
 from dice_sweep import geometry
+from dice_sweep.effects import MAX_DRAWS, MAX_SCATTER, MAX_SEED  # noqa: F401  ([scatter]'s ranges, declared in the registry)
 from dice_sweep.errors import ConfigError
 from dice_sweep.inputs import not_a_file
 
@@ -95,9 +96,6 @@ TOUCH_TOLERANCE = 1e-12  # relative to the circumradius
 # Contact window (s): a real die's contact lasts about 1e-4 s (docs/physics.md), and a window
 # beyond 1e-3 s would merge bounces of a rocking die that are separate events
 MAX_CONTACT_WINDOW = 1e-3
-MAX_SCATTER = 1.0  # relative spread of an impact's velocity jump: beyond 1 the jump exceeds the approach
-MAX_DRAWS = 4096  # draws per start of a stochastic sweep
-MAX_SEED = 2**53 - 1  # the kernel keeps the seed in a float64 slot, exact below 2^53
 DEFAULT_CONTACT_WINDOW = 1e-6  # s; docs/physics.md, "Two contacts at once", says why
 
 
@@ -121,20 +119,21 @@ class _ContactBase:
 def _registry_fields(section):
     """(name, type, field) of every key the effect registry declares in ``section``, in order."""
     keys = effect_registry.config_key_specs().get(section, {}).values()
-    return [(key.name, str if key.choices else tuple if key.length else float, field(default=key.default)) for key in keys]
+    return [(key.name, key.kind, field(default=key.default)) for key in keys]
 
 
-def _with_registry_fields(base, name, section, doc):
+def _with_registry_fields(base, name, section, doc, namespace=None):
     """A frozen dataclass ``name``: ``base``'s fields (None: none), then the registry's keys of
-    ``section``. The registry (dice_sweep/effects.py) is the one place an effect's keys are
-    declared; the section's dataclass is derived from it, so adding an effect adds no field here.
+    ``section``, and ``namespace``'s methods. The registry (dice_sweep/effects.py) is the one
+    place an effect's keys are declared; the section's dataclass is derived from it, so adding
+    an effect adds no field here.
     """
     own = [(f.name, f.type, f) for f in dataclasses.fields(base)] if base is not None else []
-    derived = dataclasses.make_dataclass(name, own + _registry_fields(section), frozen=True)
+    derived = dataclasses.make_dataclass(name, own + _registry_fields(section), frozen=True, namespace=namespace)
     derived.__module__ = __name__  # pickling (worker pools) finds it here, as a module global
     keys = effect_registry.config_key_specs().get(section, {}).values()
     derived.__doc__ = doc + (" Keys from the effect registry: " + "; ".join(
-        f"``{key.name}`` ({key.unit or 'one of ' + ', '.join(key.choices)}){': ' + key.help if key.help else ''}" for key in keys
+        f"``{key.name}`` ({key.described}){': ' + key.help if key.help else ''}" for key in keys
     ) + "." if keys else "")
     return derived
 
@@ -177,26 +176,14 @@ class World:
     g: float
 
 
-@dataclass(frozen=True)
-class Scatter:
-    """The stochastic impact law (docs/physics.md, "Scattered impacts"): ``corner`` and
-    ``flat`` (1, in [0, 1]) are the standard deviation of each impact's velocity jump over the
-    touching corner's approach speed, for landings on a corner and near flat (within 15 deg);
-    ``corner_floor`` and ``flat_floor`` (in sqrt(g R), in [0, 1]) the sd at a vanishing
-    approach: sd = min(sqrt((spread u)^2 + (floor sqrt(g R))^2), u); all 0 is the deterministic
-    law. ``draws`` (1..4096): rolls per start of a sweep; ``seed``: the
-    random streams' seed."""
-
-    corner: float = 0.0
-    flat: float = 0.0
-    corner_floor: float = 0.0
-    flat_floor: float = 0.0
-    draws: int = 1
-    seed: int = 0
-
-    @property
-    def on(self):
-        return max(self.corner, self.flat, self.corner_floor, self.flat_floor) > 0.0
+_SCATTER_LAW = effect_registry.noise_model("scattered_impacts")
+Scatter = _with_registry_fields(
+    None, "Scatter", "scatter",
+    """The stochastic impact law (docs/physics.md, "Scattered impacts"); all spreads and floors
+    0 is the deterministic law. ``on``: a spread or a floor above 0.""",
+    # the registry's null values say when the law is on
+    {"on": property(lambda self: _SCATTER_LAW.is_on(lambda key: getattr(self, key.partition(".")[2])))},
+)
 
 
 @dataclass(frozen=True)
@@ -322,7 +309,7 @@ _SECTION_SPECS = {
         "vy0": _Spec(float, 0.0, unit="m/s"),
         "omega0": _Spec(float, 10.0, unit="rad/s"),
     },
-    # [effects] and [tracking]: from the effect registry, below
+    # [effects], [tracking] and [scatter]: from the effect registry, below
     "world": {"g": _positive(9.81, "m/s^2")},
     "integrator": {
         "method": _Spec(str, "event", choices=INTEGRATOR_METHODS),
@@ -330,19 +317,13 @@ _SECTION_SPECS = {
         "t_max": _positive(30.0, "s"),
         "max_events": _Spec(int, 100_000, low=1, high=MAX_EVENTS),
     },
-    "scatter": {
-        "corner": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="(of the approach speed)"),
-        "flat": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="(of the approach speed)"),
-        "corner_floor": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="sqrt(g R)"),
-        "flat_floor": _Spec(float, 0.0, low=0.0, high=MAX_SCATTER, unit="sqrt(g R)"),
-        "draws": _Spec(int, 1, low=1, high=MAX_DRAWS),
-        "seed": _Spec(int, 0, low=0, high=MAX_SEED),
-    },
+    "scatter": {},  # from the registry's noise model, below; here for its place in written configs
 }
 for _section, _keys in effect_registry.config_key_specs().items():
     _SECTION_SPECS.setdefault(_section, {}).update({
         key.name: _Spec(str, key.default, choices=key.choices) if key.choices else
-        _Spec(float, key.default, low=key.low, high=key.high, low_open=key.low_open, unit=key.unit, length=key.length)
+        _Spec(int if key.kind is int else float, key.default, low=key.low, high=key.high, low_open=key.low_open, unit=key.unit,
+              length=key.length)
         for key in _keys.values()
     })
 _SECTION_CLASSES = {

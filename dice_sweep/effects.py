@@ -13,7 +13,10 @@ Kinds:
 
 * ``contact``: changes what happens at an impact;
 * ``flight``: acts between impacts (and so also on the states the fit gives each flight);
-* ``measurement``: the tracker's view of the die (clock, scale, angle zero), not the die.
+* ``measurement``: the tracker's view of the die (clock, scale, angle zero), not the die;
+* ``noise``: a random law around the deterministic one (``NOISE_MODELS``, not ``EFFECTS``):
+  its spreads are estimated from residuals' sizes, not fitted by least squares, so the fit and
+  the diagnosis never take it as a candidate; config, kernel slots and docs read it as any entry.
 
 There is one source of g: ``[world] g``; the ``gravity`` effect frees it.
 """
@@ -22,8 +25,12 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-__all__ = ["ConfigKey", "Param", "Effect", "EFFECTS", "BASE_PARAMS", "effect", "config_key_specs", "set_key", "get_key",
-           "declared_effects", "with_values", "param", "names"]
+__all__ = ["ConfigKey", "Param", "Effect", "EFFECTS", "NOISE_MODELS", "BASE_PARAMS", "effect", "noise_model", "config_key_specs",
+           "set_key", "get_key", "declared_effects", "with_values", "param", "names", "MAX_SCATTER", "MAX_DRAWS", "MAX_SEED"]
+
+MAX_SCATTER = 1.0  # relative spread of an impact's velocity jump: beyond 1 the jump exceeds the approach
+MAX_DRAWS = 4096  # draws per start of a stochastic sweep
+MAX_SEED = 2**53 - 1  # the kernel keeps the seed in a float64 slot, exact below 2^53
 
 
 @dataclass(frozen=True)
@@ -34,7 +41,9 @@ class ConfigKey:
     ``ipar`` one ``IP_*`` for a choice, packed as the index of the value in ``choices``); an
     array key fills ``length`` consecutive slots from there. Empty: the kernel does not read
     the key itself (a measurement key, or one that enters a derived slot, as inertia enters
-    FP_INERTIA). ``help`` is its text in docs and config docstrings.
+    FP_INERTIA). ``help`` is its text in docs and config docstrings. A key whose default is
+    an int takes whole numbers. ``scale``: callable(cfg) -> the factor from the key's unit to
+    the slot's SI one (a key in the die's own units, as sqrt(g R)); None: packed as it is.
     """
 
     section: str
@@ -51,10 +60,25 @@ class ConfigKey:
     # a range that depends on the die: callable(cfg) -> None when the value fits, else the
     # allowed range as text; config validation calls it once every section is read
     check: object = None
+    scale: object = None
 
     @property
     def dotted(self):
         return f"{self.section}.{self.name}"
+
+    @property
+    def kind(self):
+        """The Python type of its values: str (a choice), tuple (an array), int or float."""
+        return str if self.choices else tuple if self.length else int if isinstance(self.default, int) else float
+
+    @property
+    def described(self):
+        """Its unit, else its choices, else its type's name, for help texts."""
+        return self.unit or "|".join(self.choices) or self.kind.__name__
+
+    def packed(self, cfg, value):
+        """``value`` of this key as its kernel slot holds it (``scale``d to SI)."""
+        return value if self.scale is None else value * self.scale(cfg)
 
 
 @dataclass(frozen=True)
@@ -125,7 +149,7 @@ class Effect:
     residual signature."""
 
     name: str
-    kind: str  # "contact", "flight" or "measurement"
+    kind: str  # "contact", "flight", "measurement" or "noise"
     summary: str
     params: tuple = ()
     config_keys: tuple = ()  # ConfigKey entries this effect adds to the config schema
@@ -144,10 +168,14 @@ class Effect:
 
     def is_declared(self, cfg):
         """Whether a config already has this effect on (it is then not a candidate)."""
+        return self.is_on(lambda key: get_key(cfg, key), cfg)
+
+    def is_on(self, value_of, cfg=None):
+        """Whether the values ``value_of(key)`` switch this effect on (a param off its null)."""
         if self.switch:  # the last pair is the one that tells this effect (the first may be shared)
             key, value = self.switch[-1]
-            return get_key(cfg, key) == value
-        return any(get_key(cfg, p.key) != p.null_value(cfg) for p in self.params)
+            return value_of(key) == value
+        return any(value_of(p.key) != p.null_value(cfg) for p in self.params)
 
 
 def _uniform_inertia_ratio(sides):
@@ -351,8 +379,52 @@ EFFECTS = (
     ),
 )
 
+
+def _free_fall_speed(cfg):
+    """sqrt(g R) (m/s): the die's own speed, the unit of the scatter floors."""
+    return math.sqrt(cfg.world.g * cfg.die.circumradius)
+
+
+def _spread(name, help, slot, unit, scale=None):
+    """A [scatter] spread: its config key (range [0, MAX_SCATTER], 0 = none) and the Param that
+    states its null value and bounds (taken from the key, so they are declared once)."""
+    key = ConfigKey("scatter", name, 0.0, unit, low=0.0, high=MAX_SCATTER, slot=slot, scale=scale, help=help)
+    return key, Param(f"scatter_{name}", unit, key.dotted, lambda cfg: (key.low, key.high), key.default, (), 0.01)
+
+
+_SPREADS = (
+    _spread("corner", "the velocity jump's sd over the approach speed, landings on a corner", "FP_SCATTER_CORNER",
+            "(of the approach speed)"),
+    _spread("flat", "the same for landings within 15 deg of flat and two contacts at once", "FP_SCATTER_FLAT",
+            "(of the approach speed)"),
+    _spread("corner_floor", "the jump's sd at a vanishing approach, landings on a corner", "FP_SCATTER_CORNER_FLOOR",
+            "sqrt(g R)", _free_fall_speed),
+    _spread("flat_floor", "the same for flat landings", "FP_SCATTER_FLAT_FLOOR", "sqrt(g R)", _free_fall_speed),
+)
+
+# Random laws around the deterministic one: declared like effects (keys, units, ranges, null
+# values, kernel slots, signature), but never a fit's or a diagnosis's candidate
+NOISE_MODELS = (
+    Effect(
+        "scattered_impacts", "noise",
+        "each impact's velocity jump scattered around the deterministic law: a Gaussian of sd min(sqrt((spread u)^2 + "
+        "(floor sqrt(g R))^2), u) per component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed "
+        "(docs/physics.md, \"Scattered impacts\"); a sweep rolls each start `draws` times on streams of `seed`",
+        params=tuple(param for _, param in _SPREADS),
+        config_keys=(
+            *(key for key, _ in _SPREADS),
+            ConfigKey("scatter", "draws", 1, "", low=1, high=MAX_DRAWS, help="rolls per start of a sweep (> 1: a probability sweep)"),
+            ConfigKey("scatter", "seed", 0, "", low=0, high=MAX_SEED, slot="FP_STREAM_SEED", help="the random streams' seed"),
+        ),
+        signature="impact_scatter",
+        signature_note="impact residuals beyond the tracking noise's share, growing with the approach speed "
+                       "(estimated by dice_sweep/measured/scatter.py, not by a least-squares fit)",
+    ),
+)
+
 _BY_NAME = {e.name: e for e in EFFECTS}
-_PARAMS = {p.name: p for p in BASE_PARAMS + tuple(p for e in EFFECTS for p in e.params)}
+_NOISE_BY_NAME = {e.name: e for e in NOISE_MODELS}
+_PARAMS = {p.name: p for p in BASE_PARAMS + tuple(p for e in EFFECTS + NOISE_MODELS for p in e.params)}
 
 
 def names():
@@ -365,6 +437,11 @@ def effect(name):
     return _BY_NAME[name]
 
 
+def noise_model(name):
+    """The registry entry of the noise model ``name`` (KeyError if there is none)."""
+    return _NOISE_BY_NAME[name]
+
+
 def param(name):
     """The Param called ``name`` (a base parameter or an effect's)."""
     return _PARAMS[name]
@@ -373,7 +450,7 @@ def param(name):
 def config_key_specs():
     """{section: {key: ConfigKey}} of every config key the registry owns."""
     specs = {}
-    for entry in EFFECTS:
+    for entry in EFFECTS + NOISE_MODELS:
         for key in entry.config_keys:
             specs.setdefault(key.section, {})[key.name] = key
     return specs
@@ -465,3 +542,22 @@ def markdown_table():
             summary += f" (no motion tells it from {', '.join(e.equivalent)})"
         lines.append(f"| {e.name} | {e.kind} | {summary} | {params} | {key} | {e.signature}: {e.signature_note} |")
     return "\n".join(lines)
+
+
+def _range_text(key):
+    low = "(" if key.low_open else "["
+    return f"{low}{key.low:g}, {key.high:g}]" if math.isfinite(key.high) else f"{low}{key.low:g}, inf)"
+
+
+def noise_table():
+    """The noise models' keys as a Markdown table (docs/effects.md): each key's model, unit,
+    allowed range, null value (default), kernel slot, and the model's residual signature."""
+    lines = ["| noise model | config key | unit | allowed | null value (default) | kernel slot | meaning |", "|---|---|---|---|---|---|---|"]
+    for e in NOISE_MODELS:
+        for key in e.config_keys:
+            slot = f"`{key.slot}`" + (" (x sqrt(g R), m/s)" if key.scale is not None else "") if key.slot else "- (the sweep reads it)"
+            kind = ", an integer" if key.kind is int else ""
+            lines.append(f"| {e.name} | `{key.dotted}` | {key.unit or '-'} | {_range_text(key)}{kind} | {key.default!r} | {slot} | {key.help} |")
+    notes = [f"- **{e.name}** ({e.kind}): {e.summary.replace('|', chr(92) + '|')}. Residual signature {e.signature}: {e.signature_note}."
+             for e in NOISE_MODELS]
+    return "\n".join(lines + [""] + notes)

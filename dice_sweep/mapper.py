@@ -26,6 +26,7 @@ from dice_sweep.executor import ordered_map
 from dice_sweep.physics import pack_params, roll_batch
 from dice_sweep.physics.kernel import roll_batch_streams
 from dice_sweep.physics.layout import COUNT_COLUMNS, STATE_COLUMNS
+from dice_sweep.physics.scatter import off_grid_streams
 from dice_sweep.roll import initial_state
 
 CHUNK_ROLLS = 4096  # rolls per batch handed to a worker (and per progress step)
@@ -140,6 +141,30 @@ def draw_streams(pixels, draws: int) -> np.ndarray:
     ``pixels``, pixel-major (:meth:`Mapper.roll_draws`)."""
     pixels = np.asarray(pixels, dtype=np.int64)
     return np.column_stack([np.repeat(pixels, draws), np.tile(np.arange(draws), len(pixels))]).astype(np.float64)
+
+
+def _index_on(grid, values) -> np.ndarray:
+    """Index of each value in the ascending ``grid`` where it is one of its values bit for bit, else -1."""
+    index = np.clip(np.searchsorted(grid, values), 0, len(grid) - 1)
+    return np.where(grid[index] == values, index, -1)
+
+
+def start_pixels(grid_xs, grid_ys, xs, ys) -> np.ndarray:
+    """int64 (N,): the stream numbers of starts (xs[k], ys[k]) rolled for a sweep whose grid
+    has cell centres ``grid_xs`` (columns) and ``grid_ys`` (rows), both ascending: a start on a
+    cell's centre (both values equal to the grid's bit for bit) has that cell's pixel
+    j nx + i, the stream the sweep rolls it on; any other start a number in [2^52, 2^53)
+    hashed from the bits of its two values (:func:`dice_sweep.physics.scatter.off_grid_streams`),
+    never a pixel's, the same in every map it is rolled in (a zoom, a refinement level)."""
+    grid_xs, grid_ys = np.asarray(grid_xs, dtype=np.float64), np.asarray(grid_ys, dtype=np.float64)
+    xs = np.ascontiguousarray(xs, dtype=np.float64) + 0.0  # + 0.0: -0.0 and 0.0 are one start, one stream
+    ys = np.ascontiguousarray(ys, dtype=np.float64) + 0.0
+    pixels = np.empty(len(xs), dtype=np.int64)
+    off_grid_streams(xs.view(np.uint64), ys.view(np.uint64), pixels)
+    cols, rows = _index_on(grid_xs, xs), _index_on(grid_ys, ys)
+    on_grid = (cols >= 0) & (rows >= 0)
+    pixels[on_grid] = rows[on_grid] * len(grid_xs) + cols[on_grid]
+    return pixels
 
 
 class _ChunkRoll:

@@ -25,6 +25,16 @@ that turns up, so that a filled region lies inside a ring of rolled pixels of it
 away from boundaries. What it can still miss: an island of another side wholly inside a filled
 region, more than THIN_BUFFER pixels from every boundary seen, between the coarse cells'
 centres. docs/chaos.md measures the pixels that differ from a full sweep on every paper config.
+
+A probability sweep (``[scatter] draws`` M > 1) is refined by the same rule on the side that
+all M draws of a cell end on: a cell whose draws do not all agree (p < 1 for every side) is
+UNSURE, on a boundary whatever its neighbours, so its children are always rolled and never
+filled, and the thin-feature buffer grows around it as around any boundary. A filled pixel
+therefore carries p = 1 for one side from a cell whose every draw ended there. A cell is rolled
+M times on the streams :func:`dice_sweep.mapper.start_pixels` gives its start: at the last
+level a pixel's own (j nx + i, as the full sweep's), at coarser levels streams no pixel has.
+One draw of a random law (spreads above 0, draws = 1) has no p = 1 to see and is refused
+(:func:`check_refinable`).
 """
 
 from __future__ import annotations
@@ -40,9 +50,17 @@ from tqdm import tqdm
 from dice_sweep.config import cell_centres
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import workers_or_default
-from dice_sweep.mapper import Mapper, Plane, roll_states
+from dice_sweep.mapper import Mapper, Plane, draw_streams, roll_states, start_pixels
 from dice_sweep.physics.layout import COUNT_COLUMNS
-from dice_sweep.storage import create_whole, exists_error, rolls_to_maps, write_refinement_maps
+from dice_sweep.storage import (
+    NO_ANSWER,
+    PROBABILITY_PREFIX,
+    create_whole,
+    draws_to_maps,
+    exists_error,
+    rolls_to_maps,
+    write_refinement_maps,
+)
 from dice_sweep.sweep import SweepInterrupted, TileGrid, sweep_header
 
 MAX_LEVELS = 12  # 2^12 = 4096 times coarser: more would leave almost no coarse grid
@@ -52,6 +70,7 @@ PRIOR_GROWTH = 0.5  # change of the boundary share per level before two levels a
 # it. With 3, fig13 at 1024^2 still differed from the full sweep in 144 pixels (0.0137 %),
 # 57 of them 4 pixels from a boundary; docs/chaos.md, "Adaptive refinement", measures 4.
 THIN_BUFFER = 4
+UNSURE = -3  # label of a cell whose draws do not all end alike (no outcome code: sides >= 0, no answer -1)
 
 
 # --- the quadtree -------------------------------------------------------------------------
@@ -80,6 +99,28 @@ def boundary_cells(outcome) -> np.ndarray:
             cols_a, cols_b = slice(max(0, -dx), nx - max(0, dx)), slice(max(0, dx), nx - max(0, -dx))
             flagged[rows_a, cols_a] |= outcome[rows_a, cols_a] != outcome[rows_b, cols_b]
     return flagged
+
+
+def sure_outcome(maps) -> np.ndarray:
+    """(ny, nx) labels refinement compares: a map of one roll per cell, its outcome; a
+    probability map, the outcome all of a cell's draws end on, :data:`UNSURE` where they differ."""
+    if NO_ANSWER not in maps:
+        return maps["outcome"]
+    shares = [maps[name] for name in maps if name.startswith(PROBABILITY_PREFIX)] + [maps[NO_ANSWER]]
+    return np.where(np.max(shares, axis=0) == 1.0, maps["outcome"], UNSURE)
+
+
+def refine_boundary(labels) -> np.ndarray:
+    """bool map of the cells refinement treats as on a boundary: those whose label differs from a
+    neighbour's (:func:`boundary_cells`), and every :data:`UNSURE` one."""
+    return boundary_cells(labels) | (np.asarray(labels) == UNSURE)
+
+
+def check_refinable(cfg) -> None:
+    """Refuse ``--refine`` for one draw per cell of a random law (module docstring)."""
+    if cfg.scatter.on and cfg.scatter.draws == 1:
+        raise DiceSweepError(f"--refine: {cfg.source}: [scatter] draws = 1 with spreads above 0 is one draw of a random law, "
+                             "with no region of one sure side to fill (allowed with --refine: draws > 1, or spreads and floors 0)")
 
 
 def level_values(lo: float, hi: float, cells: int) -> np.ndarray:
@@ -187,10 +228,41 @@ def estimated_rolls(share: float, previous_share: float | None, cells_next: int,
     return int(sum(cells_next * 4**k * min(1.0, share * growth**k) for k in range(levels_left)))
 
 
-def _roll_cells(mapper: Mapper, plane: Plane, xs, ys, rows, cols, workers, on_chunk) -> dict[str, np.ndarray]:
-    """Roll cells (rows[k], cols[k]) of a level with centres xs, ys; 1-D maps by dataset."""
-    rolls = roll_states(mapper, plane.cells(xs[cols], ys[rows]), workers, on_chunk)
-    return rolls_to_maps(COUNT_COLUMNS, (len(rows),), *rolls)
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Cells:
+    """How refinement rolls cells: the mapper and plane, and for a probability sweep its draws
+    per cell, the full grid's centres (each start's streams) and the die's sides."""
+
+    mapper: Mapper
+    plane: Plane
+    draws: int = 1
+    stochastic: bool = False
+    grid_xs: np.ndarray = None
+    grid_ys: np.ndarray = None
+    sides: int = 0
+
+    @classmethod
+    def from_config(cls, cfg) -> "_Cells":
+        grid = cfg.grid
+        return cls(Mapper.from_config(cfg), Plane.from_config(cfg), cfg.scatter.draws, cfg.scatter.on or cfg.scatter.draws > 1,
+                   level_values(grid.x.min, grid.x.max, grid.x.num), level_values(grid.y.min, grid.y.max, grid.y.num),
+                   cfg.die.sides)
+
+    @property
+    def each(self) -> str:
+        """What a roll of a cell is, for the lines on stderr: M draws in a probability sweep."""
+        return f" (a roll of a cell: its {self.draws} draws)" if self.draws > 1 else ""
+
+    def roll(self, xs, ys, rows, cols, workers, on_chunk) -> dict[str, np.ndarray]:
+        """Roll cells (rows[k], cols[k]) of a level with centres xs, ys; 1-D maps by dataset."""
+        states = self.plane.cells(xs[cols], ys[rows])
+        if not self.stochastic:
+            return rolls_to_maps(COUNT_COLUMNS, (len(rows),), *roll_states(self.mapper, states, workers, on_chunk))
+        streams = draw_streams(start_pixels(self.grid_xs, self.grid_ys, xs[cols], ys[rows]), self.draws)
+        rolls = roll_states(self.mapper, np.repeat(states, self.draws, axis=0), workers, on_chunk, streams=streams)
+        if self.draws == 1:
+            return rolls_to_maps(COUNT_COLUMNS, (len(rows),), *rolls)
+        return draws_to_maps(COUNT_COLUMNS, (len(rows),), self.sides, self.draws, *rolls)
 
 
 def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: bool = True, log=None) -> RefinedMaps:
@@ -220,24 +292,24 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
     grid = cfg.grid
     ny0, nx0 = coarse_shape(grid, levels)
     full = grid.y.num * grid.x.num
-    mapper, plane = Mapper.from_config(cfg), Plane.from_config(cfg)
-    maps = _roll_level(mapper, plane, grid, (ny0, nx0), workers, on_chunk)
+    cells = _Cells.from_config(cfg)
+    maps = _roll_level(cells, grid, (ny0, nx0), workers, on_chunk)
     refine_level = np.zeros((ny0, nx0), dtype=np.uint8)
     rolls_per_level = [ny0 * nx0]
     previous_share = None
     for level in range(1, levels + 1):
-        boundary = boundary_cells(maps["outcome"])
+        boundary = refine_boundary(sure_outcome(maps))
         share = float(boundary.mean())
         estimate = estimated_rolls(share, previous_share, 4 * boundary.size, levels - level + 1)
         if fallback and estimate >= full:
             decision = (
                 f"--refine {levels}: rolled the full {grid.y.num} x {grid.x.num} grid instead, after level {level - 1}: "
                 f"{100 * share:.0f} % of its cells lie on a boundary, so refining would take about {estimate} more "
-                f"rolls, the full grid {full}"
+                f"rolls, the full grid {full}{cells.each}"
             )
             if log is not None:
                 log(decision)
-            maps = _roll_level(mapper, plane, grid, (grid.y.num, grid.x.num), workers, on_chunk)
+            maps = _roll_level(cells, grid, (grid.y.num, grid.x.num), workers, on_chunk)
             refine_level = np.full(maps["outcome"].shape, levels, dtype=np.uint8)
             rolls_per_level += [0] * (levels - level) + [full]
             return RefinedMaps(maps, refine_level, levels, sum(rolls_per_level), tuple(rolls_per_level), decision, True)
@@ -247,17 +319,17 @@ def refine_maps(cfg, levels: int, *, workers: int = 1, on_chunk=None, fallback: 
         refine_level = np.repeat(np.repeat(refine_level, 2, axis=0), 2, axis=1)
         xs = level_values(grid.x.min, grid.x.max, refine.shape[1])
         ys = level_values(grid.y.min, grid.y.max, refine.shape[0])
-        rolls = _roll_and_follow(refine, maps, refine_level, level, mapper, plane, xs, ys, workers, on_chunk)
+        rolls = _roll_and_follow(refine, maps, refine_level, level, cells, xs, ys, workers, on_chunk)
         while level == levels:
             # the last level: until no filled cell lies near a boundary or on the map's edge
             # (a boundary found there grows the buffer, so look again after each round)
-            unproven = unproven_cells(maps["outcome"], refine_level < level)
+            unproven = unproven_cells(sure_outcome(maps), refine_level < level)
             if not unproven.any():
                 break
-            rolls += _roll_and_follow(unproven, maps, refine_level, level, mapper, plane, xs, ys, workers, on_chunk)
+            rolls += _roll_and_follow(unproven, maps, refine_level, level, cells, xs, ys, workers, on_chunk)
         rolls_per_level.append(rolls)
     rolls = sum(rolls_per_level)
-    decision = f"--refine {levels}: refined in {rolls} rolls, {100 * rolls / full:.1f} % of the full grid's {full}"
+    decision = f"--refine {levels}: refined in {rolls} rolls, {100 * rolls / full:.1f} % of the full grid's {full}{cells.each}"
     if rolls > full:
         decision += "; more than the full grid, as its coarse levels lie almost all on boundaries: use fewer levels"
     if log is not None:
@@ -286,7 +358,8 @@ def unproven_cells(outcome, filled) -> np.ndarray:
     Parameters
     ----------
     outcome : numpy.ndarray
-        (ny, nx) outcomes of the last level, filled cells included.
+        (ny, nx) outcomes of the last level, filled cells included (a probability map's
+        :func:`sure_outcome`: UNSURE cells count as on a boundary).
     filled : numpy.ndarray
         bool (ny, nx): cells not rolled at their own centres.
 
@@ -296,13 +369,13 @@ def unproven_cells(outcome, filled) -> np.ndarray:
         bool (ny, nx).
     """
     filled = np.asarray(filled, dtype=bool)
-    unproven = grown(boundary_cells(outcome) & ~filled, THIN_BUFFER)
+    unproven = grown(refine_boundary(outcome) & ~filled, THIN_BUFFER)
     unproven[[0, -1], :] = True
     unproven[:, [0, -1]] = True
     return unproven & filled
 
 
-def _roll_and_follow(refine, maps, refine_level, level, mapper, plane, xs, ys, workers, on_chunk) -> int:
+def _roll_and_follow(refine, maps, refine_level, level, cells: _Cells, xs, ys, workers, on_chunk) -> int:
     """Roll the cells of ``refine`` at ``level`` into ``maps``, then every cell not yet rolled at
     this level that lies on a boundary, until none is left; returns the rolls."""
     rolls = 0
@@ -310,19 +383,19 @@ def _roll_and_follow(refine, maps, refine_level, level, mapper, plane, xs, ys, w
         # a boundary found at this level can run on into a block that was not refined:
         # follow it there, until every cell on a boundary was rolled at this level
         rows, cols = np.nonzero(refine)
-        for name, values in _roll_cells(mapper, plane, xs, ys, rows, cols, workers, on_chunk).items():
+        for name, values in cells.roll(xs, ys, rows, cols, workers, on_chunk).items():
             maps[name][rows, cols] = values
         refine_level[rows, cols] = level
         rolls += len(rows)
-        refine = boundary_cells(maps["outcome"]) & (refine_level < level)
+        refine = refine_boundary(sure_outcome(maps)) & (refine_level < level)
     return rolls
 
 
-def _roll_level(mapper: Mapper, plane: Plane, grid, shape, workers, on_chunk) -> dict[str, np.ndarray]:
+def _roll_level(cells: _Cells, grid, shape, workers, on_chunk) -> dict[str, np.ndarray]:
     """Every cell of the level of ``shape`` (rows, columns) of ``grid``, rolled at its centre."""
     rows, cols = np.indices(shape).reshape(2, -1)
     xs, ys = level_values(grid.x.min, grid.x.max, shape[1]), level_values(grid.y.min, grid.y.max, shape[0])
-    return {name: values.reshape(shape) for name, values in _roll_cells(mapper, plane, xs, ys, rows, cols, workers, on_chunk).items()}
+    return {name: values.reshape(shape) for name, values in cells.roll(xs, ys, rows, cols, workers, on_chunk).items()}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -343,6 +416,8 @@ class RefineSummary:
         Wall time.
     fell_back : bool
         True if the full grid was rolled instead of refining.
+    draws : int
+        Rolls of each cell rolled (a probability sweep's M; ``rolls`` counts cells).
     """
 
     path: str
@@ -352,6 +427,7 @@ class RefineSummary:
     simulated: int
     seconds: float
     fell_back: bool = False
+    draws: int = 1
 
     def describe(self) -> str:
         """One line for the user."""
@@ -359,7 +435,7 @@ class RefineSummary:
         full = ny * nx
         how = "--refine {}: the full grid, as refining could not save rolls" if self.fell_back else "refined over {} levels"
         return (
-            f"{self.path} ({ny} x {nx}, {how.format(self.levels)}): {self.rolls} rolls "
+            f"{self.path} ({ny} x {nx}, {how.format(self.levels)}): {self.rolls * self.draws} rolls "
             f"({100 * self.rolls / full:.1f} % of a full sweep) in {self.seconds:.1f} s, "
             f"{self.simulated} pixels ({100 * self.simulated / full:.1f} %) rolled at their own centre, complete"
         )
@@ -428,7 +504,7 @@ def run_refined_sweep(cfg, out_path, levels: int, *, workers: int | None = None,
     write_refined(out_path, cfg, refined)
     return RefineSummary(
         str(out_path), refined.refine_level.shape, levels, refined.rolls, int(refined.simulated.sum()),
-        time.perf_counter() - started, refined.fell_back,
+        time.perf_counter() - started, refined.fell_back, cfg.scatter.draws,
     )
 
 

@@ -20,6 +20,76 @@ def test_names_are_unique_and_kinds_known():
     params = [p.name for e in effects.EFFECTS for p in e.params] + [p.name for p in effects.BASE_PARAMS]
     assert len(set(params)) == len(params)
     assert {e.kind for e in effects.EFFECTS} <= {"contact", "flight", "measurement"}
+    assert {e.kind for e in effects.NOISE_MODELS} == {"noise"}
+    assert not set(NAMES) & {e.name for e in effects.NOISE_MODELS}  # never a fit's or diagnosis's candidate
+
+
+NOISE_KEYS = [key for e in effects.NOISE_MODELS for key in e.config_keys]
+
+
+def test_noise_models_are_complete():
+    """A noise model declares keys with units, ranges and defaults, the null values at which it
+    is off (its params, bounded by its keys' ranges), and a residual signature."""
+    for entry in effects.NOISE_MODELS:
+        assert entry.summary and entry.signature and entry.signature_note and entry.params
+        assert not entry.is_declared(CFG)
+        keys = {key.dotted: key for key in entry.config_keys}
+        for p in entry.params:
+            key = keys[p.key]
+            assert p.bounds_of(CFG) == (key.low, key.high) and p.null_value(CFG) == key.default
+            on = effects.set_key(CFG, p.key, 0.5 * (key.low + key.high))
+            assert entry.is_declared(on) and on.scatter.on
+
+
+@pytest.mark.parametrize("key", NOISE_KEYS, ids=lambda key: key.dotted)
+def test_noise_keys_are_config_keys_with_the_registrys_range(key):
+    """Each noise key is read by the config with the range the registry gives it: its bounds
+    parse, a value beyond either is refused naming the key and the registry's range."""
+    cfg = parse_config("")
+    assert effects.get_key(cfg, key.dotted) == key.default and type(effects.get_key(cfg, key.dotted)) is key.kind
+    for value in (key.low, key.high):
+        assert effects.get_key(parse_config(f"[{key.section}]\n{key.name} = {key.kind(value)!r}\n"), key.dotted) == value
+    for value in (key.low - 1, key.high + 1 if key.high < 2**53 - 1 else 2**53):
+        with pytest.raises(Exception) as error:
+            parse_config(f"[{key.section}]\n{key.name} = {key.kind(value)!r}\n")
+        assert key.dotted in str(error.value) and f"[{key.low:g}, {key.high:g}]" in str(error.value)
+
+
+def test_the_scatter_section_is_the_registrys_keys():
+    """The config's [scatter] dataclass has exactly the noise model's keys, in registry order
+    (written configs keep that order), and is written back only when off its defaults."""
+    from dice_sweep.config import Scatter, config_to_toml
+
+    assert [f.name for f in __import__("dataclasses").fields(Scatter)] == [key.name for key in NOISE_KEYS]
+    assert "[scatter]" not in config_to_toml(parse_config(""))
+    cfg = parse_config("[scatter]\ncorner = 0.1\ndraws = 8\nseed = 3\n")
+    assert parse_config(config_to_toml(cfg)) == cfg and "[scatter]" in config_to_toml(cfg)
+
+
+def test_noise_slots_are_packed_from_the_registry():
+    """Each slotted noise key reaches its kernel slot, a key in the die's own units times its
+    scale (the floors: sqrt(g R)); and the config, the slots and the kernel's packing name no
+    noise key themselves (one place declares them)."""
+    from pathlib import Path
+
+    from dice_sweep.physics.params import KeyWriter, slot
+
+    cfg = CFG
+    for i, key in enumerate(k for k in NOISE_KEYS if k.slot):
+        cfg = effects.set_key(cfg, key.dotted, key.kind(0.1 * (i + 1) if key.kind is float else 7))
+    fpar, _ = pack_params(cfg)
+    writer = KeyWriter(CFG)
+    for key in NOISE_KEYS:
+        if not key.slot:
+            continue
+        value = effects.get_key(cfg, key.dotted)
+        factor = math.sqrt(cfg.world.g * cfg.die.circumradius) if key.unit == "sqrt(g R)" else 1.0
+        assert fpar[slot(key.dotted)] == pytest.approx(value * factor, rel=1e-15)
+        assert writer.fpar_with({key.dotted: value})[slot(key.dotted)] == fpar[slot(key.dotted)]
+    root = Path(effects.__file__).parent
+    sources = (root / "config.py").read_text() + (root / "physics" / "params.py").read_text()
+    for key in NOISE_KEYS:
+        assert f'"{key.name}"' not in sources and (not key.slot or key.slot not in sources), key.dotted
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -175,6 +245,9 @@ def test_markdown_table_lists_every_effect():
     table = effects.markdown_table()
     for name in NAMES:
         assert f"| {name} |" in table
+    noise = effects.noise_table()
+    for key in NOISE_KEYS:
+        assert f"`{key.dotted}`" in noise and (not key.slot or f"`{key.slot}`" in noise)
 
 
 def test_docs_tables_are_regenerated_from_the_registry():

@@ -9,7 +9,7 @@ import pytest
 
 from dice_sweep import mapper as mapper_module
 from dice_sweep.config import parse_config
-from dice_sweep.mapper import Mapper, Plane, Rolls, initial_states, roll_states
+from dice_sweep.mapper import Mapper, Plane, Rolls, initial_states, roll_states, start_pixels
 from dice_sweep.physics.layout import COUNT_COLUMNS, STATE_COLUMNS
 from dice_sweep.storage import COUNT_MAX
 from tests.test_sweep import CONFIG_TEXT
@@ -104,3 +104,19 @@ def test_initial_states_run_x_fast_y_slow(cfg):
     assert states.shape == (6, len(STATE_COLUMNS)) and states.dtype == np.float64
     assert states[:, STATE_COLUMNS.index("omega0")].tolist() == [1.0, 2.0, 3.0] * 2
     assert states[:, STATE_COLUMNS.index("y0")].tolist() == [0.05] * 3 + [0.07] * 3
+
+
+def test_start_pixels_are_the_grids_pixels_on_it_and_hashed_streams_off_it():
+    """On a cell centre (bit for bit) a start has the sweep's pixel j nx + i; elsewhere a number
+    in [2^52, 2^53) that depends on its two values only (either one changed changes it), and
+    -0.0 is 0.0."""
+    grid_xs, grid_ys = np.array([0.1, 0.2, 0.3]), np.array([1.0, 2.0])
+    xs = np.array([0.2, 0.3, 0.1, 0.25, 0.25, 0.25, np.nextafter(0.2, 1.0), 0.0, -0.0])
+    ys = np.array([2.0, 1.0, 1.0, 1.0, 1.5, 1.0, 2.0, 1.0, 1.0])
+    pixels = start_pixels(grid_xs, grid_ys, xs, ys)
+    assert pixels[:3].tolist() == [4, 2, 0]
+    off = pixels[3:]
+    assert np.all((off >= 2**52) & (off < 2**53))
+    assert len(set(off[[0, 1, 3, 4]].tolist())) == 4  # another x or y, even by one ulp: another stream
+    assert pixels[3] == pixels[5] and off[-1] == off[-2]  # the same start twice: one stream
+    assert np.array_equal(start_pixels(grid_xs, grid_ys, xs[::-1], ys[::-1]), pixels[::-1])  # not the order of the batch

@@ -7,16 +7,20 @@ from dice_sweep.config import load_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.refine import (
     THIN_BUFFER,
+    UNSURE,
     boundary_cells,
     check_levels,
+    check_refinable,
     compare_with_full,
     estimated_rolls,
     grown,
     refine_maps,
+    refine_boundary,
     run_refined_sweep,
+    sure_outcome,
     unproven_cells,
 )
-from dice_sweep.storage import read_refinement_maps, read_sweep
+from dice_sweep.storage import probability_names, read_refinement_maps, read_sweep
 from dice_sweep.mapper import Mapper, initial_states, roll_states
 from tests.helpers import invoke, small_sweep
 from tests.helpers import run_cli as run
@@ -194,3 +198,64 @@ def test_refinement_that_saves_says_so():
     refined = refine_maps(fig08(256), 3, log=lines.append)
     assert not refined.fell_back and lines == [refined.decision]
     assert lines[0] == f"--refine 3: refined in {refined.rolls} rolls, {100 * refined.rolls / 256**2:.1f} % of the full grid's 65536"
+
+
+# --- probability sweeps ------------------------------------------------------------------------
+
+# the [scatter] law of configs/scatter_real.toml at half its spreads and floors: fig08 then
+# keeps regions where all draws agree (a fifth of the pixels at 64 x 64), so refinement fills some
+HALF_REAL = ["scatter.corner=0.0147", "scatter.corner_floor=0.0607", "scatter.flat=0.0415", "scatter.flat_floor=0.0258"]
+
+
+def probability_fig08(num, draws, law=HALF_REAL):
+    return load_config("configs/fig08.toml", [f"grid.x.num={num}", f"grid.y.num={num}", f"scatter.draws={draws}", *law])
+
+
+def shares_of(maps, sides=4):
+    return np.stack([maps[name] for name in probability_names(sides)])
+
+
+def test_sure_outcome_is_the_side_all_draws_agree_on():
+    maps = {"outcome": np.array([[1, 2], [0, -1]], dtype=np.int8), "probability_0": np.array([[0.0, 0.0], [1.0, 0.0]]),
+            "probability_1": np.array([[1.0, 0.5], [0.0, 0.0]]), "no_answer": np.array([[0.0, 0.5], [0.0, 1.0]])}
+    assert sure_outcome(maps).tolist() == [[1, UNSURE], [0, -1]]
+    assert sure_outcome({"outcome": maps["outcome"]}) is maps["outcome"]  # one roll per cell: its outcome
+    labels = np.zeros((5, 5), dtype=np.int8)
+    labels[2, 2] = UNSURE
+    assert refine_boundary(labels).sum() == 9  # an unsure cell and its neighbours
+    labels[:] = UNSURE
+    assert refine_boundary(labels).all()  # unsure cells among unsure ones too: never filled
+
+
+def test_a_refined_probability_map_fills_only_sure_pixels_and_rolls_the_others_as_the_full_sweep(tmp_path):
+    """Every pixel rolled at its own centre has the full sweep's shares bit for bit (its own
+    streams, whatever level rolled it); every filled one p = 1, and the share of pixels whose
+    shares differ from the full sweep's stays within the deterministic rule's 0.01 %."""
+    cfg = probability_fig08(128, 16)
+    refined = refine_maps(cfg, 3, workers=2, fallback=False)
+    path = tmp_path / "full.h5"
+    small_sweep(cfg, path, workers=2)
+    full = read_sweep(path).probability
+    mine, filled = shares_of(refined.maps), ~refined.simulated
+    assert filled.sum() > 0 and np.mean(full.max(axis=0) < 1) > 0.5  # something filled; most pixels unsure: a real check
+    assert np.array_equal(mine[:, ~filled], full[:, ~filled])
+    assert np.all(mine[:, filled].max(axis=0) == 1.0)
+    assert np.mean(np.any(mine != full, axis=0)) <= 1e-4
+
+
+def test_a_probability_map_without_scatter_refines_as_the_deterministic_map():
+    """Control: spreads 0 and 4 draws: every draw is the deterministic roll, every cell sure,
+    so refinement rolls and fills exactly as for the deterministic map, with shares 0 or 1."""
+    deterministic = refine_maps(fig08(64), 2)
+    draws = refine_maps(probability_fig08(64, 4, law=[]), 2)
+    assert np.array_equal(draws.refine_level, deterministic.refine_level)
+    assert np.array_equal(draws.maps["outcome"], deterministic.maps["outcome"])
+    shares = shares_of(draws.maps)
+    assert np.array_equal(shares.argmax(axis=0), deterministic.maps["outcome"]) and set(np.unique(shares)) == {0.0, 1.0}
+
+
+def test_one_draw_of_a_random_law_is_not_refinable():
+    with pytest.raises(DiceSweepError, match=r"draws = 1 with spreads above 0 is one draw of a random law"):
+        check_refinable(probability_fig08(64, 1))
+    check_refinable(probability_fig08(64, 2))
+    check_refinable(fig08(64))

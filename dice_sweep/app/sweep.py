@@ -78,7 +78,7 @@ def sweep(cfg, out_path, *, png_path=None, workers=None, shard=(0, 1), resume=Fa
     output paths checked (:func:`dice_sweep.outputs.check_outputs`). What only this command
     asks is checked here: a grid, ``--refine``'s levels and what it combines with, the executor.
     """
-    from dice_sweep.refine import check_levels, run_refined_sweep
+    from dice_sweep.refine import check_levels, check_refinable, run_refined_sweep
     from dice_sweep.sweep import run_sweep
 
     require_grid(cfg)
@@ -86,10 +86,7 @@ def sweep(cfg, out_path, *, png_path=None, workers=None, shard=(0, 1), resume=Fa
     if refine_levels is not None:
         if resume or shard != (0, 1) or executor != "local":
             raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")
-        if cfg.scatter.on or cfg.scatter.draws > 1:
-            raise DiceSweepError(f"--refine: {cfg.source}: [scatter] corner = {cfg.scatter.corner:g}, flat = {cfg.scatter.flat:g}, "
-                                 f"draws = {cfg.scatter.draws}: a probability sweep is rolled in full (allowed with --refine: "
-                                 "spreads 0 and draws = 1)")
+        check_refinable(cfg)
         check_levels(cfg, refine_levels)
         summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=progress, log=log)
     else:

@@ -40,16 +40,12 @@ FP_RHO_MAX = 10  # largest distance from the COM to a point of the die (a corner
 FP_WINDOW = 11  # contact window: contacts arriving within it are one impact, s
 FP_DRAG_TOL = 12  # x rho_max: position error allowed per Runge-Kutta step of a flight with drag
 FP_DRAG_MAX_STEP = 13  # s: longest Runge-Kutta step of a flight with drag
-# the stochastic impact law ([scatter], physics/scatter.py): relative spreads, 0 = deterministic
-FP_SCATTER_CORNER = 14  # 1: velocity jump sd over the approach speed, landings on a corner
-FP_SCATTER_FLAT = 15  # 1: the same for landings near flat and two-contact impacts
-# a roll's random stream (integers below 2^53 stored as floats): set per roll by the batch
-FP_STREAM_SEED = 16
-FP_STREAM_PIXEL = 17
-FP_STREAM_DRAW = 18
-FP_SCATTER_CORNER_FLOOR = 19  # m/s: the jump's sd at vanishing approach speed, corner landings
-FP_SCATTER_FLAT_FLOOR = 20  # m/s: the same for flat landings
-N_FP_BASE = 21
+# a roll's random stream (seed, pixel, draw) for the stochastic impact law (physics/scatter.py),
+# integers below 2^53 stored as floats: pixel and draw set per roll by the batch; the seed and
+# the law's spreads (FP_SCATTER_*, floors in m/s) are the registry's [scatter] slots
+FP_STREAM_PIXEL = 14
+FP_STREAM_DRAW = 15
+N_FP_BASE = 16
 
 # ipar indices
 IP_N = 0  # number of sides
@@ -97,15 +93,16 @@ INERTIA_KEY = "effects.inertia"
 
 
 def _slot_of(dotted_key):
-    """(vector, index) of a config key: a base key of BASE_KEY_SLOTS or a registry key, with
-    ``[i]`` for a component of an array key (``"effects.com_offset[1]"``)."""
+    """(vector, index, registry ConfigKey or None) of a config key: a base key of
+    BASE_KEY_SLOTS or a registry key, with ``[i]`` for a component of an array key
+    (``"effects.com_offset[1]"``)."""
     name, _, item = dotted_key.partition("[")
     offset = int(item.rstrip("]")) if item else 0
     if name in BASE_KEY_SLOTS and not item:
-        return "fpar", BASE_KEY_SLOTS[name]
+        return "fpar", BASE_KEY_SLOTS[name], None
     for vector, index, key in SLOTS.values():
         if key.dotted == name and offset < max(key.length, 1):
-            return vector, index + offset
+            return vector, index + offset, key
     raise KeyError(f"{dotted_key} has no kernel slot in the effect registry")
 
 
@@ -128,7 +125,7 @@ def _write_slot(key, value, fpar, ipar, index):
 def _pack_registry_slots(cfg, fpar, ipar):
     """Fill every registry slot from the config's value of its key."""
     for _, index, key in SLOTS.values():
-        _write_slot(key, effect_registry.get_key(cfg, key.dotted), fpar, ipar, index)
+        _write_slot(key, key.packed(cfg, effect_registry.get_key(cfg, key.dotted)), fpar, ipar, index)
 
 
 def _pack_derived(fpar, sides, inertia):
@@ -172,12 +169,6 @@ def pack_params(cfg):
     fpar[FP_WINDOW] = cfg.contact.window
     fpar[FP_DRAG_TOL] = DRAG_TOL
     fpar[FP_DRAG_MAX_STEP] = DRAG_MAX_STEP
-    fpar[FP_SCATTER_CORNER] = cfg.scatter.corner
-    fpar[FP_SCATTER_FLAT] = cfg.scatter.flat
-    fpar[FP_STREAM_SEED] = cfg.scatter.seed
-    speed = math.sqrt(cfg.world.g * cfg.die.circumradius)  # [scatter] floors are in sqrt(g R): each die's own speed
-    fpar[FP_SCATTER_CORNER_FLOOR] = cfg.scatter.corner_floor * speed
-    fpar[FP_SCATTER_FLAT_FLOOR] = cfg.scatter.flat_floor * speed
     _pack_derived(fpar, n, effect_registry.get_key(cfg, INERTIA_KEY))
     ipar[IP_N] = n
     ipar[IP_MODEL] = MODELS[cfg.contact.model]
@@ -201,6 +192,7 @@ class KeyWriter:
         self.fpar, self.ipar = pack_params(cfg)
         self.sides = cfg.die.sides
         self.inertia = effect_registry.get_key(cfg, INERTIA_KEY)
+        self.cfg = cfg  # the unit of a key in the die's own units (a scatter floor's sqrt(g R))
 
     def fpar_with(self, values):
         """A copy of ``fpar`` with ``values`` ({dotted config key: number}, a component of an
@@ -212,10 +204,10 @@ class KeyWriter:
             if key == INERTIA_KEY:
                 inertia = float(value)
                 continue
-            vector, index = _slot_of(key)
+            vector, index, spec = _slot_of(key)
             if vector != "fpar":
                 raise KeyError(f"{key} is a choice (ipar), not a number to write")
-            fpar[index] = float(value)
+            fpar[index] = float(value) if spec is None else spec.packed(self.cfg, float(value))
         _pack_derived(fpar, self.sides, inertia)
         return fpar
 

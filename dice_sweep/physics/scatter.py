@@ -50,6 +50,10 @@ _S27 = np.uint64(27)
 _S31 = np.uint64(31)
 _S11 = np.uint64(11)
 _UNIT = 2.0**-53  # a 53-bit integer times this is in [0, 1)
+# Stream numbers of starts off a sweep's grid lie in [2^52, 2^53): above every pixel number
+# (below MAX_GRID_NUM^2 = 10^10), below the 2^53 a float64 slot holds exactly
+OFF_GRID_STREAMS = 2**52
+_S12 = np.uint64(12)
 
 
 @numba.njit(cache=True)
@@ -66,6 +70,15 @@ def mix64(x):
 def stream_key(seed, pixel, draw):
     """The uint64 key of stream (seed, pixel, draw), each a non-negative integer below 2^53."""
     return mix64(mix64(mix64(np.uint64(seed)) ^ np.uint64(pixel)) ^ np.uint64(draw))
+
+
+@numba.njit(cache=True)
+def off_grid_streams(x_bits, y_bits, out):
+    """Stream numbers of starts off a sweep's grid, from the float64 bits (uint64 arrays) of
+    their two swept values: 2^52 plus the top 52 bits of a hash of both, into ``out`` (int64):
+    a function of the start alone, whatever map it is rolled in."""
+    for k in range(x_bits.size):
+        out[k] = OFF_GRID_STREAMS + np.int64(mix64(mix64(x_bits[k]) ^ y_bits[k]) >> _S12)
 
 
 @numba.njit(cache=True)

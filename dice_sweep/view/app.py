@@ -18,10 +18,11 @@ import time
 import numpy as np
 
 from dice_sweep.chaos import DEFAULT_BOX_SIZE, basin_entropy, outcome_fractions
+from dice_sweep.chaos.measures import measure_probability, shannon_entropy
 from dice_sweep.config import PARAM_UNITS, Axis, Grid, check_initial_clear, config_to_toml, parse_config
 from dice_sweep.errors import ConfigError, DiceSweepError
 from dice_sweep.executor import workers_or_default
-from dice_sweep.mapper import Mapper, initial_states
+from dice_sweep.mapper import Mapper, initial_states, start_pixels
 from dice_sweep.physics.layout import EVENT_IMPACT, REC_ENERGY, REC_EVENT, REC_KIND, REC_T, SEG_SLIDE, STATE_COLUMNS
 from dice_sweep.storage import read_sweep
 
@@ -95,6 +96,40 @@ def map_stats(outcome: np.ndarray, sides: int, computed: np.ndarray | None = Non
     }
 
 
+def draw_shares(outcomes: np.ndarray, sides: int) -> np.ndarray:
+    """float32 (n + 1, ...): the share of the draws (last axis of ``outcomes``) ending on each
+    side, then without one: a probability sweep's /probability_k and /no_answer."""
+    codes = np.where(outcomes < 0, sides, outcomes)
+    return np.stack([(codes == k).mean(axis=-1) for k in range(sides + 1)]).astype(np.float32)
+
+
+def probability_view(probability: np.ndarray, draws: int, computed: np.ndarray | None = None) -> dict:
+    """What the page draws of a probability map (n + 1, ny, nx), as the sweep's picture does
+    (dice_sweep.plotting.shaded_sides): ``outcome``, the most likely outcome (side, -1 no
+    answer; NOT_COMPUTED where not ``computed``), shaded by ``p_max``, its probability, and
+    ``entropy``, -sum p ln p in nats; as arrays, and the map's probability measures
+    (:func:`dice_sweep.chaos.measures.measure_probability`) when it is whole."""
+    probability = np.nan_to_num(probability)  # cells not computed: no shares
+    sides = probability.shape[0] - 1
+    best = np.argmax(probability, axis=0)
+    outcome = np.where(best == sides, -1, best).astype(np.int16)
+    if computed is not None:
+        outcome[~computed] = NOT_COMPUTED
+    measures = measure_probability(probability, draws).to_dict() if computed is None or computed.all() else None
+    return {"outcome": outcome, "p_max": probability.max(axis=0), "entropy": shannon_entropy(probability), "measures": measures}
+
+
+JSON_DIGITS = 6  # decimals of the shares and entropies sent: a third of the bytes of float32's repr
+
+
+def _json_maps(maps: dict, listed: bool = True) -> dict:
+    """The maps of ``maps`` (not its ``measures``) ready for JSON: floats rounded to
+    JSON_DIGITS decimals; as lists, or as arrays (``listed`` False)."""
+    ready = {name: np.round(values, JSON_DIGITS) if values.dtype.kind == "f" else values
+             for name, values in maps.items() if name != "measures"}
+    return {name: values.tolist() for name, values in ready.items()} if listed else ready
+
+
 def _sampled(cells: int) -> np.ndarray:
     """Indices of the cells sent for an axis of ``cells`` cells: all of them up to
     MAX_FILE_PIXELS, else the cell under the centre of each of MAX_FILE_PIXELS equal parts."""
@@ -158,6 +193,10 @@ class ViewApp:
         self.workers = workers_or_default(workers)
         self.sides = self.cfg.die.sides
         self.mapper = Mapper.from_config(self.cfg)
+        # the random law: zooms roll each start on its streams (start_pixels), as the sweep did;
+        # with draws > 1 they show probabilities (docs/view.md, "Probability files")
+        self.draws = self.cfg.scatter.draws
+        self.stochastic = self.cfg.scatter.on or self.draws > 1
         self._pool = None
         self._maps = threading.BoundedSemaphore(MAX_MAPS_AT_ONCE)
         from dice_sweep.plotting import NOT_COMPUTED_COLOR, UNDECIDED_COLOR, outcome_colors, outcome_title
@@ -208,11 +247,15 @@ class ViewApp:
         sweep = self.sweep
         computed = sweep.computed
         outcome = np.where(computed, sweep.outcome, NOT_COMPUTED).astype(np.int16)
+        shown = {"outcome": outcome}
+        if sweep.probability is not None:
+            shown = probability_view(sweep.probability, self.draws, computed)
         rows, cols = (_sampled(n) for n in outcome.shape)
         x_axis, y_axis = self._axis("x"), self._axis("y")
-        if len(cols) < outcome.shape[1] or len(rows) < outcome.shape[0]:
-            outcome = outcome[np.ix_(rows, cols)]
+        sampled = len(cols) < outcome.shape[1] or len(rows) < outcome.shape[0]
+        if sampled:
             x_axis["index"], y_axis["index"] = cols.tolist(), rows.tolist()
+        maps = _json_maps({name: values[np.ix_(rows, cols)] if sampled else values for name, values in shown.items() if name != "measures"})
         return {
             "name": os.path.basename(self.path),
             "title": self.title,
@@ -222,9 +265,11 @@ class ViewApp:
             "dice_sweep_version": sweep.dice_sweep_version,
             "x": x_axis,
             "y": y_axis,
-            "outcome": outcome.tolist(),
+            **maps,
+            "draws": self.draws if sweep.probability is not None else 1,
             "colors": self.colors,
-            "stats": map_stats(sweep.outcome, self.sides, None if computed.all() else computed),
+            "stats": {**map_stats(shown["outcome"], self.sides, None if computed.all() else computed),
+                      "probability": shown.get("measures")},
             "max_pixels": MAX_PIXELS,
             "not_computed_code": NOT_COMPUTED,
         }
@@ -284,8 +329,9 @@ class ViewApp:
         """Roll every cell of ``request`` with the file's config (``GET /api/map``).
 
         The starts are those a sweep of ``request.cfg`` rolls, so the file's own range and
-        size give the file's outcome array exactly. ``on_band(first_row, end_row, rows,
-        rolls_done)`` reports progress; ``cancelled()`` stops (dice_sweep.view.pool).
+        size give the file's outcome array exactly; a probability file's zoom shows its
+        shares (:meth:`roll_zoom`, :func:`probability_view`). ``on_band(first_row, end_row,
+        rows, rolls_done)`` reports progress; ``cancelled()`` stops (dice_sweep.view.pool).
         """
         if self._pool is None:
             raise RuntimeError("ViewApp.start() was not called")
@@ -293,25 +339,53 @@ class ViewApp:
             raise Busy(f"{MAX_MAPS_AT_ONCE} maps are being computed already; retry when one is done")
         try:
             started = time.perf_counter()
-            grid = request.cfg.grid
-            xs, ys = grid.x.values(), grid.y.values()
-            states = initial_states(request.cfg, xs, ys)
-            mapper = Mapper.from_config(request.cfg).with_engine_for(states, len(states), self.workers)
-            outcome = self._pool.roll_map(mapper, states, (request.ny, request.nx), on_band, cancelled)
+            outcome, engine = self.roll_zoom(request, on_band and self._shaded_bands(on_band), cancelled)
             seconds = time.perf_counter() - started
         finally:
             self._maps.release()
+        shown = {"outcome": outcome}
+        if self.stochastic:
+            shown = probability_view(draw_shares(outcome, self.sides), self.draws) if self.draws > 1 else {"outcome": outcome[..., 0]}
+        grid = request.cfg.grid
         return {
             "xmin": request.xmin, "xmax": request.xmax, "ymin": request.ymin, "ymax": request.ymax,
             "nx": request.nx, "ny": request.ny,
             "x_param": grid.x.param, "y_param": grid.y.param,
-            "x": xs.tolist(), "y": ys.tolist(),
-            "outcome": outcome.tolist(),
-            "stats": map_stats(outcome, self.sides),
+            "x": grid.x.values().tolist(), "y": grid.y.values().tolist(),
+            **_json_maps(shown),
+            "draws": self.draws if self.stochastic else 1,
+            "stats": {**map_stats(shown["outcome"], self.sides), "probability": shown.get("measures")},
             "rolls": int(outcome.size),
             "seconds": seconds,
-            "engine": mapper.engine,
+            "engine": engine,
         }
+
+    def roll_zoom(self, request: MapRequest, on_band=None, cancelled=None):
+        """(outcome, engine) of the cells of ``request`` rolled by the worker pool: an int8
+        (ny, nx) map; with the file's random law, each start rolled ``draws`` times on its
+        streams, (ny, nx, draws). A start's streams are :func:`dice_sweep.mapper.start_pixels`'s
+        on the file's grid: a zoom cell on a file cell's centre rolls that cell's draws, any
+        other start streams of its own (docs/view.md, "Probability files")."""
+        grid = request.cfg.grid
+        xs, ys = grid.x.values(), grid.y.values()
+        states = initial_states(request.cfg, xs, ys)
+        mapper = Mapper.from_config(request.cfg).with_engine_for(states, len(states), self.workers)
+        pixels = None
+        if self.stochastic:
+            pixels = start_pixels(self.sweep.x.values, self.sweep.y.values, np.tile(xs, len(ys)), np.repeat(ys, len(xs)))
+        return self._pool.roll_map(mapper, states, (request.ny, request.nx), on_band, cancelled, pixels, self.draws), mapper.engine
+
+    def _shaded_bands(self, on_band):
+        """``on_band`` given the rows of a map rolled ``draws`` times per start as the page
+        draws them: the most likely outcome, and with draws > 1 its probability and the entropy."""
+        def band(first, end, rows, done):
+            if not self.stochastic:
+                return on_band(first, end, rows, done)
+            if self.draws == 1:
+                return on_band(first, end, rows[..., 0], done)
+            shown = probability_view(draw_shares(rows, self.sides), self.draws)
+            return on_band(first, end, shown["outcome"], done, **_json_maps({"p_max": shown["p_max"], "entropy": shown["entropy"]}, False))
+        return band
 
     def config_text(self, request: MapRequest) -> str:
         """A config that ``dice-sweep sweep`` turns into this view (``GET /api/config``)."""

@@ -41,8 +41,10 @@ def _init_worker(mapper, start) -> None:
     mapper.with_engine_for(start[np.newaxis, :].copy(), 1, 1).warm_up(start)
 
 
-def _roll_band(mapper, states: np.ndarray) -> np.ndarray:
-    return mapper.roll(states).outcome
+def _roll_band(mapper, states: np.ndarray, pixels, draws: int) -> np.ndarray:
+    if pixels is None:
+        return mapper.roll(states).outcome
+    return mapper.roll_draws(states, pixels, draws).outcome
 
 
 def _nothing() -> None:
@@ -82,16 +84,20 @@ class RollPool:
         for _ in range(self.workers):
             self._executor.submit(_nothing)
 
-    def roll_map(self, mapper, states: np.ndarray, shape: tuple[int, int], on_band=None, cancelled=None) -> np.ndarray:
+    def roll_map(self, mapper, states: np.ndarray, shape: tuple[int, int], on_band=None, cancelled=None,
+                 pixels=None, draws: int = 1) -> np.ndarray:
         """Outcomes of the mapper on ``states`` (row-major over ``shape`` = (ny, nx)) as an int8 (ny, nx) map.
 
-        ``on_band(first_row, end_row, outcome_rows, rolls_done)`` is called as each band
-        arrives (in any order); it may raise to stop. ``cancelled()`` is asked between bands;
-        True stops with :class:`Cancelled`. Bands not started are dropped either way.
+        With ``pixels`` (each start's stream number, :func:`dice_sweep.mapper.start_pixels`):
+        ``draws`` rolls of each start on its streams (:meth:`Mapper.roll_draws`), an int8
+        (ny, nx, draws) map. ``on_band(first_row, end_row, outcome_rows, rolls_done)`` is called
+        as each band arrives (in any order); it may raise to stop. ``cancelled()`` is asked
+        between bands; True stops with :class:`Cancelled`. Bands not started are dropped either way.
         """
         ny, nx = shape
-        outcome = np.empty(shape, np.int8)
-        todo = iter(bands(ny, nx, self.workers))
+        draws = 1 if pixels is None else draws
+        outcome = np.empty(shape if pixels is None else (*shape, draws), np.int8)
+        todo = iter(bands(ny, nx * draws, self.workers))
         pending = {}
         done_rolls = 0
 
@@ -99,7 +105,9 @@ class RollPool:
             band = next(todo, None)
             if band is not None:
                 first, end = band
-                pending[self._executor.submit(_roll_band, mapper, states[first * nx : end * nx])] = band
+                cells = slice(first * nx, end * nx)
+                band_pixels = None if pixels is None else pixels[cells]
+                pending[self._executor.submit(_roll_band, mapper, states[cells], band_pixels, draws)] = band
 
         try:
             for _ in range(2 * self.workers):  # one running and one queued per worker
@@ -110,8 +118,8 @@ class RollPool:
                     raise Cancelled()
                 for future in finished:
                     first, end = pending.pop(future)
-                    outcome[first:end] = future.result().reshape(end - first, nx)
-                    done_rolls += (end - first) * nx
+                    outcome[first:end] = future.result().reshape(outcome[first:end].shape)
+                    done_rolls += (end - first) * nx * draws
                     if on_band is not None:
                         on_band(first, end, outcome[first:end], done_rolls)
                     submit_next()

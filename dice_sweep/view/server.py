@@ -207,11 +207,12 @@ class ViewHandler(BaseHTTPRequestHandler):
             self.wfile.write(json.dumps(data, allow_nan=False, separators=(",", ":")).encode() + b"\n")
             self.wfile.flush()
 
-        total = request.nx * request.ny
+        total = request.nx * request.ny * self.server.app.draws
         line({"event": "start", "total": total, "nx": request.nx, "ny": request.ny})
 
-        def band(first, end, rows, done):
-            line({"event": "band", "rows": [first, end], "outcome": rows.tolist(), "done": done, "total": total})
+        def band(first, end, rows, done, **shares):  # a probability map's band also has p_max and entropy rows
+            line({"event": "band", "rows": [first, end], "outcome": rows.tolist(), **{name: values.tolist() for name, values in shares.items()},
+                  "done": done, "total": total})
 
         result = self.server.app.compute_map(request, on_band=band, cancelled=self.server.stopping.is_set)
         self.server.log_map(result)

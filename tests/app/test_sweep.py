@@ -146,12 +146,25 @@ def test_several_files_are_drawn_side_by_side_titled_by_their_configs(tmp_path):
     assert not diagram_title(storage.read_sweep(whole)).endswith("(incomplete)")
 
 
-def test_refine_refuses_a_probability_sweep_before_any_work(cfg, tmp_path):
-    scattered = parse_config(CONFIG_TEXT + "\n[scatter]\ncorner = 0.1\ndraws = 4\n", "p.toml",
-                             overrides=["grid.x.num=8", "grid.y.num=8"])
-    with pytest.raises(DiceSweepError, match=r"--refine: p.toml: \[scatter\] corner = 0.1, flat = 0, draws = 4"):
+def test_refine_refuses_one_draw_of_a_random_law_before_any_work(cfg, tmp_path):
+    scattered = parse_config(CONFIG_TEXT + "\n[scatter]\ncorner = 0.1\n", "p.toml", overrides=["grid.x.num=8", "grid.y.num=8"])
+    with pytest.raises(DiceSweepError, match=r"--refine: p.toml: \[scatter\] draws = 1 with spreads above 0 is one draw"):
         quiet(scattered, tmp_path / "x.h5", refine_levels=1)
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_a_refined_probability_sweep_writes_the_shares_of_the_pixels_it_rolled(tmp_path):
+    """A probability sweep with --refine: a complete file with its share maps; the pixels
+    rolled at their own centre have the full sweep's shares, the filled ones p = 1."""
+    scattered = parse_config(CONFIG_TEXT + "\n[scatter]\ncorner = 0.1\nflat = 0.1\ndraws = 4\n", "p.toml",
+                             overrides=["grid.x.num=16", "grid.y.num=16"])
+    quiet(scattered, tmp_path / "r.h5", refine_levels=1)
+    quiet(scattered, tmp_path / "f.h5")
+    refined, full = read_sweep(tmp_path / "r.h5"), read_sweep(tmp_path / "f.h5")
+    rolled = storage.read_refinement_maps(tmp_path / "r.h5")[0]
+    assert refined.complete and refined.probability is not None and refined.draws == 4
+    assert np.array_equal(refined.probability[:, rolled], full.probability[:, rolled])
+    assert np.all(refined.probability[:, ~rolled].max(axis=0) == 1.0)
 
 
 def test_a_probability_sweep_is_drawn_as_shaded_sides_beside_its_entropy(tmp_path):

@@ -12,13 +12,14 @@ import pytest
 from dice_sweep.chaos import basin_entropy
 from dice_sweep.config import load_config, parse_config
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.mapper import Mapper, initial_states
+from dice_sweep.chaos.measures import shannon_entropy
+from dice_sweep.mapper import Mapper, initial_states, start_pixels
 from dice_sweep.roll import roll_config
 from dice_sweep.storage import read_sweep
 from dice_sweep.sweep import axis_values
-from dice_sweep.view.app import MAX_PIXELS, QueryError, ViewApp, map_stats
+from dice_sweep.view.app import MAX_PIXELS, QueryError, ViewApp, draw_shares, map_stats
 from tests.helpers import small_sweep
-from tests.view.client import ZOOM, get, get_json, zoom_config
+from tests.view.client import DEMO, SMALL, ZOOM, get, get_json, zoom_config
 
 
 # --- the API against the kernel ---------------------------------------------------------------
@@ -178,3 +179,73 @@ def test_a_missing_file_or_a_file_of_another_kind_is_refused(tmp_path):
     (tmp_path / "text.h5").write_text("not a sweep")
     with pytest.raises(DiceSweepError, match="not an HDF5 file"):
         ViewApp(tmp_path / "text.h5", workers=1)
+
+
+# --- a probability file (draws > 1 of the scattered law) -------------------------------------
+
+SCATTERED = ["scatter.corner=0.1", "scatter.flat=0.1", "scatter.corner_floor=0.05", "scatter.draws=8", "scatter.seed=5"]
+
+
+@pytest.fixture(scope="module")
+def probability_app(tmp_path_factory):
+    """The demo at 16 x 12 cells as a probability sweep (8 draws a cell), opened for viewing
+    with one worker process; and the file as read back."""
+    path = tmp_path_factory.mktemp("probability") / "p.h5"
+    small_sweep(load_config(DEMO, [*SMALL, *SCATTERED]), path)
+    app = ViewApp(path, workers=1)
+    app.start()
+    yield app, read_sweep(path)
+    app.close()
+
+
+def _request(app, **zoom):
+    return app.map_request({name: [repr(value)] for name, value in zoom.items()})
+
+
+def test_a_probability_zoom_of_the_files_grid_rolls_each_pixels_own_draws(probability_app):
+    """The file's own range and size: every zoom cell is a file cell, rolled on its streams, so
+    its shares are the file's bit for bit, and the page gets the file's shaded map."""
+    app, sweep = probability_app
+    x, y = app.cfg.grid.x, app.cfg.grid.y
+    request = _request(app, xmin=x.min, xmax=x.max, ymin=y.min, ymax=y.max, nx=x.num, ny=y.num)
+    outcome, _ = app.roll_zoom(request)
+    assert outcome.shape == (y.num, x.num, 8)
+    assert np.array_equal(draw_shares(outcome, 4), sweep.probability)
+    assert np.mean(sweep.probability.max(axis=0) < 1) > 0.2  # the law scatters: draws differ, a real check
+    answer, info = app.compute_map(request), app.file_json()
+    for name in ("outcome", "p_max", "entropy"):
+        assert answer[name] == info[name], name
+    best = np.argmax(sweep.probability, axis=0)
+    assert np.array_equal(answer["outcome"], np.where(best == 4, -1, best))
+    assert np.allclose(answer["p_max"], sweep.probability.max(axis=0), rtol=0, atol=1e-6)
+    assert np.allclose(answer["entropy"], shannon_entropy(sweep.probability), rtol=0, atol=1e-6)
+    assert answer["draws"] == info["draws"] == 8 and answer["rolls"] == x.num * y.num * 8
+    assert answer["stats"]["probability"]["draws"] == 8
+
+
+def test_a_zoom_cell_on_a_file_cells_centre_has_its_shares_and_other_starts_streams_of_their_own(probability_app):
+    """Three cells per file column over four columns: the middle one of each three is on a
+    file cell's centre (bit for bit) and has its shares; the others roll streams no file pixel
+    has, the same in a wider zoom that holds the same starts."""
+    app, sweep = probability_app
+    x, y = app.cfg.grid.x, app.cfg.grid.y
+    width = (x.max - x.min) / x.num
+    zoom = {"xmin": x.min + 2 * width, "xmax": x.min + 6 * width, "ymin": y.min, "ymax": y.max, "nx": 12, "ny": y.num}
+    request = _request(app, **zoom)
+    shares = draw_shares(app.roll_zoom(request)[0], 4)
+    xs = request.cfg.grid.x.values()
+    on_file = np.flatnonzero(np.isin(xs, sweep.x.values))
+    assert on_file.tolist() == [1, 4, 7, 10]  # the middle of each three
+    assert np.array_equal(shares[:, :, on_file], sweep.probability[:, :, 2:6])
+    pixels = start_pixels(sweep.x.values, sweep.y.values, np.tile(xs, y.num), np.repeat(request.cfg.grid.y.values(), 12))
+    off = ~np.isin(np.tile(np.arange(12), y.num), on_file)
+    assert np.all((pixels[off] >= 2**52) & (pixels[off] < 2**53))
+    wider = _request(app, **{**zoom, "xmax": x.min + 10 * width, "nx": 24})  # the same 12 starts, and 12 more
+    assert np.array_equal(wider.cfg.grid.x.values()[:12], xs)
+    assert np.array_equal(draw_shares(app.roll_zoom(wider)[0], 4)[:, :, :12], shares)
+
+
+def test_a_deterministic_files_zoom_is_one_roll_per_start(server):
+    """The file of one roll per start: no draws, no shares in the answer."""
+    status, answer = get_json(server, "/api/map", **ZOOM)
+    assert status == 200 and answer["draws"] == 1 and "p_max" not in answer and answer["stats"]["probability"] is None

@@ -88,15 +88,22 @@
     return {
       ...range, nx, ny, source,
       outcome: new Int16Array(nx * ny),
+      pMax: null, entropy: null, // a probability map's: the most likely outcome's p, the entropy (nats)
       rowDone: new Uint8Array(ny),
       canvas, ctx: canvas.getContext("2d"),
       stats: null, complete: false,
     };
   }
 
-  function fillRows(layer, first, rows) {
-    // row 0 is the lowest y: it goes to the bottom line of the image
+  function fillRows(layer, first, rows, pMax, entropy) {
+    // row 0 is the lowest y: it goes to the bottom line of the image; a probability map's
+    // most likely outcome fades to white as its p falls to 1 / (n + 1), as plotting.shaded_sides
     const count = rows.length;
+    const floor = 1 / (state.file.sides + 1);
+    if (pMax && !layer.pMax) {
+      layer.pMax = new Float32Array(layer.nx * layer.ny);
+      layer.entropy = new Float32Array(layer.nx * layer.ny);
+    }
     const image = layer.ctx.createImageData(layer.nx, count);
     for (let r = 0; r < count; r++) {
       const row = rows[r];
@@ -104,7 +111,14 @@
       for (let i = 0; i < layer.nx; i++) {
         const code = row[i];
         layer.outcome[(first + r) * layer.nx + i] = code;
-        const [red, green, blue] = colourOf(code);
+        let [red, green, blue] = colourOf(code);
+        if (pMax) {
+          const p = pMax[r][i];
+          layer.pMax[(first + r) * layer.nx + i] = p;
+          layer.entropy[(first + r) * layer.nx + i] = entropy[r][i];
+          const strength = code === state.file.not_computed_code ? 1 : Math.min(1, Math.max(0, (p - floor) / (1 - floor)));
+          [red, green, blue] = [red, green, blue].map((c) => Math.round(255 - strength * (255 - c)));
+        }
         const k = 4 * (line * layer.nx + i);
         image.data[k] = red;
         image.data[k + 1] = green;
@@ -141,6 +155,8 @@
       return {
         layer: l, i: fi, j: fj,
         code: l.outcome[j * l.nx + i],
+        p: l.pMax ? l.pMax[j * l.nx + i] : null,
+        entropy: l.entropy ? l.entropy[j * l.nx + i] : null,
         x: l.xmin + ((fi + 0.5) * (l.xmax - l.xmin)) / cols,
         y: l.ymin + ((fj + 0.5) * (l.ymax - l.ymin)) / rows,
       };
@@ -327,6 +343,13 @@
         `(boxes of ${e.box_size} x ${e.box_size} cells; ${e.boundary_boxes} of ${e.boxes} on a boundary)` +
         (e.Sbb_above_log2 ? "; Sbb > ln 2: the boundary is fractal." : ".")
       : "Basin entropy: needs a whole map of at least 5 x 5 cells.";
+    const m = stats.probability; // a probability map: the shares above are of the most likely sides
+    if (m) {
+      const [low, high] = m.predictable_share_range_from_draws;
+      $("entropy").textContent += ` ${m.draws} draws per cell: one side at p >= ${m.predictable_probability} on ` +
+        `${pct(m.predictable_share)} of the cells (${pct(low)} to ${pct(high)} within the draws), mean outcome entropy ` +
+        `${m.basin_entropy_nats.toFixed(3)} nats (${m.basin_entropy_miller_madow_nats.toFixed(3)} Miller-Madow).`;
+    }
   }
 
   function describeLayer(l) {
@@ -433,7 +456,7 @@
           if (!line) continue;
           const message = JSON.parse(line);
           if (message.event === "band") {
-            fillRows(layer, message.rows[0], message.outcome);
+            fillRows(layer, message.rows[0], message.outcome, message.p_max, message.entropy);
             showProgress(message.done, message.total);
             if (state.computing && state.computing.layer === layer) render();
           } else if (message.event === "result") {
@@ -442,7 +465,7 @@
         }
       }
       if (!result) throw new Error("the server closed the connection before the map was done");
-      fillRows(layer, 0, result.outcome);
+      fillRows(layer, 0, result.outcome, result.p_max, result.entropy);
       layer.stats = result.stats;
       layer.seconds = result.seconds;
       layer.complete = true;
@@ -490,7 +513,10 @@
       $("readout").textContent = `${f.x.param} = ${fmt(toDataX(px))} ${f.x.unit}, ${f.y.param} = ${fmt(toDataY(py))} ${f.y.unit}: not computed`;
       return;
     }
-    const side = cell.code >= 0 ? "side " + cell.code : cell.code === -1 ? "undecided" : "not computed";
+    let side = cell.code >= 0 ? "side " + cell.code : cell.code === -1 ? "undecided" : "not computed";
+    if (cell.p !== null && cell.code !== state.file.not_computed_code) {
+      side = `most likely ${side}, p = ${cell.p.toFixed(3)} of ${f.draws} draws, entropy ${cell.entropy.toFixed(3)} nats`;
+    }
     $("readout").textContent =
       `${f.x.param} = ${fmt(cell.x, 8)} ${f.x.unit}, ${f.y.param} = ${fmt(cell.y, 8)} ${f.y.unit}: ${side}` +
       ` (cell ${cell.i}, ${cell.j} of ${describeLayer(cell.layer)})`;
@@ -782,7 +808,7 @@
       layer.yIndex = f.y.index || null;
       layer.fileNum = [f.x.num, f.y.num];
     }
-    fillRows(layer, 0, f.outcome);
+    fillRows(layer, 0, f.outcome, f.p_max, f.entropy);
     layer.stats = f.stats;
     layer.complete = true;
     state.layers = [layer];
