@@ -36,10 +36,14 @@ SCAN = (1.0, 3.0, 10.0, 30.0, 100.0, 300.0)  # factors on the release states' st
 
 
 def has_draws(path):
+    """A fit JSON with bootstrap draws whose model never saw the tracks a forecast scores: a
+    ``fit`` (its confirmation tracks), or a cross-fitted diagnose with its ``held_out_model``
+    (issue 30; its named model was refitted on every track)."""
     try:
-        return bool(json.loads(Path(path).read_text()).get("bootstrap_draws"))
+        data = json.loads(Path(path).read_text())
     except (OSError, ValueError):
         return False
+    return bool(data.get("bootstrap_draws")) and ("after" not in data or isinstance(data.get("held_out_model"), dict))
 
 
 def the_fit(args):
@@ -53,27 +57,46 @@ def the_fit(args):
     print(f"making the fit: dice-sweep diagnose -> {path}", file=sys.stderr)
     subprocess.run([sys.executable, "-m", "dice_sweep", "diagnose", args.data, "--config", str(CONFIG), "--angle", "auto", "--quiet",
                     "--json", str(path)], check=True)
+    if not has_draws(path):
+        sys.exit(f"{path}: no held_out_model (too few tracks for cross-fitting halves): its model saw every track, so it cannot "
+                 "score held-out ones")
     return path
 
 
 def with_scatter(args, fit):
-    """The fit JSON with the stochastic impact law's spreads (``scatter``, as fit and diagnose
-    write it since issue 31): the fit itself when it has them, else a copy in out/forecast/
-    with them estimated on its selection tracks (dice_sweep.measured.scatter)."""
+    """The fit JSON with the stochastic impact law (``scatter``) and its scale: the fit itself
+    when it has both, else a copy in out/forecast/ with what is missing estimated on the fit's
+    selection tracks only (for a cross-fitted diagnose, the half its held-out model was fitted
+    on): the spreads by dice_sweep.measured.scatter, then one factor on them all by the
+    selection tracks' forecasts from every flight (dice_sweep.measured.forecast.fit_scatter_scale)."""
     data = json.loads(Path(fit).read_text())
-    if data.get("scatter"):
+    if (data.get("scatter") or {}).get("scale"):
         return Path(fit)
     from dice_sweep.config import load_config
-    from dice_sweep.measured.forecast import parse_fit
+    from dice_sweep.measured import forecast as fc
+    from dice_sweep.measured.noise import tracking_noise
     from dice_sweep.measured.report import jsonable
     from dice_sweep.measured.scatter import fitted_scatter
     from dice_sweep.measured.tracks import load_tracks
 
+    def say(line):
+        print(line, file=sys.stderr)
+
     cfg = load_config(CONFIG)
-    source = parse_fit(data, fit, cfg, 0.3, 0)
+    source = fc.parse_fit(data, fit, cfg, 0.3, 0)
     tracks = load_tracks(args.data, sides=cfg.die.sides, circumradius=cfg.die.circumradius, angle="auto")
-    data["scatter"] = fitted_scatter(tracks, cfg, source.effects, source.params, confirm_fraction=source.confirm_fraction,
-                                     seed=source.seed, log=lambda line: print(line, file=sys.stderr))
+    if not data.get("scatter"):
+        data["scatter"] = fitted_scatter(tracks, cfg, source.effects, source.params, confirm_fraction=source.confirm_fraction,
+                                         seed=source.seed, log=say)
+        source = fc.parse_fit(data, fit, cfg, 0.3, 0)
+    table, _, sigma = tracking_noise(tracks, cfg)
+    select_set, _ = tracks.split(source.confirm_fraction, source.seed)
+    observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
+    prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    bounces = [k for k, count in enumerate(fc.flight_counts(prepared)) if count >= fc.MIN_BOUNCE_TRACKS]
+    data["scatter"]["scale"] = fc.fit_scatter_scale(prepared, cfg, source, bounces, sigma=sigma, observed=observed,
+                                                    workers=len(os.sched_getaffinity(0)), log=say)
+    say(f"scatter scale on the selection tracks: {data['scatter']['scale']['value']:.3f} {data['scatter']['scale']['ci95']}")
     path = OUT / "fit_with_scatter.json"
     path.write_text(json.dumps(jsonable(data), indent=1))
     return path
