@@ -3,6 +3,7 @@
     python scripts/forecast_diagnosis.py residuals   # (a) impact residuals against the law, by impact / speed / kind
     python scripts/forecast_diagnosis.py flights     # (b) the flight-K states: frames, reduced chi-square, sds
     python scripts/forecast_diagnosis.py calibration [--members 500] [--scale S]  # forecasts of the selection tracks, every K
+    python scripts/forecast_diagnosis.py scale       # fit_scatter_scale on the selection tracks -> out/forecast/<fit>_scaled.json
 
 The fit is the cross-fitted diagnose's held-out model (out/measured/report.json, or --fit):
 fold 0's model, chosen and fitted on fold 1's tracks, which are the selection tracks here; the
@@ -130,9 +131,26 @@ def calibration(args):
                           "most_likely_right": s["share_correct_most_likely"]["value"]}), flush=True)
 
 
+def scale(args):
+    """fit_scatter_scale on the selection tracks; the fit JSON with it written to out/forecast/<fit>_scaled.json."""
+    from dice_sweep.measured import forecast as fc
+    from dice_sweep.measured.report import jsonable
+
+    cfg, source, select_set, table, sigma = context(args)
+    observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
+    prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    bounces = [k for k, count in enumerate(fc.flight_counts(prepared)) if count >= fc.MIN_BOUNCE_TRACKS]
+    found = fc.fit_scatter_scale(prepared, cfg, source, bounces, sigma=sigma, observed=observed, workers=2,
+                                 log=lambda line: print(line, file=sys.stderr))
+    data = json.loads(Path(args.fit).read_text())
+    data["scatter_scale"] = found
+    (OUT / f"{Path(args.fit).stem}_scaled.json").write_text(json.dumps(jsonable(data), indent=1))
+    print(json.dumps({k: v for k, v in found.items() if k != "rule"}))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("what", choices=("residuals", "flights", "calibration"))
+    parser.add_argument("what", choices=("residuals", "flights", "calibration", "scale"))
     parser.add_argument("--fit", default=str(ROOT / "out" / "measured" / "report.json"))
     parser.add_argument("--members", type=int, default=500)
     parser.add_argument("--scale", type=float, default=1.0)
@@ -142,7 +160,7 @@ def main():
     if not DATA.exists():
         print(f"skipped: {DATA} not found")
         return 0
-    {"residuals": residuals, "flights": flights, "calibration": calibration}[args.what](args)
+    {"residuals": residuals, "flights": flights, "calibration": calibration, "scale": scale}[args.what](args)
     return 0
 
 

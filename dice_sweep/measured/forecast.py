@@ -165,7 +165,7 @@ def parse_fit(data, path, cfg, confirm_fraction, seed):
 
 def _scatter_of(data, path):
     """{"corner": s, "flat": s, "corner_floor": f, "flat_floor": f} from a fit JSON's ``scatter``,
-    times its ``scale`` when it has one (:func:`fit_scatter_scale`); None without one."""
+    times the JSON's ``scatter_scale`` when it has one (:func:`fit_scatter_scale`); None without one."""
     record = data.get("scatter")
     if record is None:
         return None
@@ -179,19 +179,18 @@ def _scatter_of(data, path):
             if not _number(value) or not 0.0 <= value <= MAX_SCATTER:
                 raise _fit_error(path, f"scatter.{kind}.{key} is not in [0, {MAX_SCATTER:g}]")
             spreads[name] = float(value)
-    scale = record.get("scale") if isinstance(record, dict) else None
+    scale = _scale_of(data)
     if scale is not None:  # the factor fit_scatter_scale chose on the selection tracks
         value = scale.get("value") if isinstance(scale, dict) else None
         if not _number(value) or not 0.0 < value <= MAX_SCALE:
-            raise _fit_error(path, f"scatter.scale.value is not in (0, {MAX_SCALE:g}]")
+            raise _fit_error(path, f"scatter_scale.value is not in (0, {MAX_SCALE:g}]")
         spreads = scaled_scatter(spreads, value)
     return spreads
 
 
 def _scale_of(data):
-    """The ``scale`` record of a fit JSON's ``scatter`` (checked by :func:`_scatter_of`), or None."""
-    record = data.get("scatter")
-    return record.get("scale") if isinstance(record, dict) else None
+    """A fit JSON's ``scatter_scale`` (checked by :func:`_scatter_of`), or None."""
+    return data.get("scatter_scale")
 
 
 def scattered(cfg, spreads, seed):

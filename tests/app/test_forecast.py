@@ -281,12 +281,12 @@ def test_a_scatter_law_out_of_range_is_a_one_line_error(drops, tmp_path):
 
 
 def test_a_fitted_scale_multiplies_the_scatter_law_and_is_reported(drops, tmp_path):
-    """Issue 31: the fit JSON's scatter.scale (fit_scatter_scale's factor) multiplies every
+    """Issue 31: the fit JSON's scatter_scale (fit_scatter_scale's factor) multiplies every
     spread and floor, capped at 1, and the report says so."""
     data, _ = drops
     scale = {"value": 1.5, "ci95": [1.2, 1.9], "tracks": 40, "bounces": [0, 1], "at_grid_end": False}
-    scatter = {"corner": {"value": 0.05, "floor": 0.1}, "flat": {"value": 0.8, "floor": 0.0}, "scale": scale}
-    fit = fit_json(tmp_path / "scaled.json", scatter=scatter)
+    scatter = {"corner": {"value": 0.05, "floor": 0.1}, "flat": {"value": 0.8, "floor": 0.0}}
+    fit = fit_json(tmp_path / "scaled.json", scatter=scatter, scatter_scale=scale)
     out = tmp_path / "f.json"
     result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 0, "--workers", 2, "--json", out,
                     "--md", tmp_path / "f.md", "--quiet")
@@ -300,7 +300,7 @@ def test_a_fitted_scale_multiplies_the_scatter_law_and_is_reported(drops, tmp_pa
 @pytest.mark.parametrize("value", [0.0, -1.0, 1e9, "2"])
 def test_a_scatter_scale_out_of_range_is_a_one_line_error(drops, tmp_path, value):
     data, _ = drops
-    fit = fit_json(tmp_path / "bad.json", scatter={"corner": {"value": 0.1}, "flat": {"value": 0.1}, "scale": {"value": value}})
+    fit = fit_json(tmp_path / "bad.json", scatter={"corner": {"value": 0.1}, "flat": {"value": 0.1}}, scatter_scale={"value": value})
     result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json")
-    assert result.exit_code == 2 and "scatter.scale.value is not in (0, 100]" in result.output
+    assert result.exit_code == 2 and "scatter_scale.value is not in (0, 100]" in result.output
     assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "f.json").exists()
