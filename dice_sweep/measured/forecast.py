@@ -504,8 +504,8 @@ def forecast_tracks(tracks, cfg, source, *, sigma, table=0.0, bounces=(0,), memb
 
 # factors tried on every spread and floor of the fitted law, sqrt(2) apart
 SCALE_GRID = (0.35, 0.5, 0.71, 1.0, 1.41, 2.0, 2.83, 4.0)
-SCALE_MEMBERS = 250
-MAX_SCALE = 100.0  # a scale read from a fit JSON: above it every spread is at MAX_SCATTER anyway  # members per track, forecast point and factor (common random numbers across factors)
+SCALE_MEMBERS = 250  # members per track, forecast point and factor (common random numbers across factors)
+MAX_SCALE = 100.0  # a scale read from a fit JSON: above it every spread is at MAX_SCATTER anyway
 
 
 def scaled_scatter(spreads, scale):
@@ -972,12 +972,17 @@ def _z(calibration, key):
 
 
 def _scale_text(scale):
+    """The factor on the law, as the report names it (a hand-written scatter_scale may hold its value only)."""
     if not isinstance(scale, dict):
         return ""
-    low, high = scale["ci95"]
-    return (f" (the spreads estimated from clean impacts times {scale['value']:.3f} [{low:.3f}, {high:.3f}], the factor whose forecasts "
-            f"of {scale['tracks']} selection tracks from flights {', '.join(map(str, scale['bounces']))} score best"
-            + (", at the end of the factors tried" if scale.get("at_grid_end") else "") + ")")
+    interval = scale.get("ci95")
+    text = f" (the spreads estimated from clean impacts times {scale['value']:.3f}"
+    if isinstance(interval, list) and len(interval) == 2:
+        text += f" [{interval[0]:.3f}, {interval[1]:.3f}]"
+    if scale.get("tracks") and scale.get("bounces"):
+        text += (f", the factor whose forecasts of {scale['tracks']} selection tracks from flights "
+                 f"{', '.join(map(str, scale['bounces']))} score best")
+    return text + (", at the end of the factors tried" if scale.get("at_grid_end") else "") + ")"
 
 
 def markdown(report):

@@ -295,6 +295,11 @@ def test_a_fitted_scale_multiplies_the_scatter_law_and_is_reported(drops, tmp_pa
     assert report["fit"]["scatter"] == pytest.approx({"corner": 0.075, "corner_floor": 0.15, "flat": 1.0, "flat_floor": 0.0})
     assert report["fit"]["scatter_scale"]["value"] == 1.5
     assert "times 1.500 [1.200, 1.900]" in (tmp_path / "f.md").read_text()
+    fit = fit_json(tmp_path / "bare.json", scatter=scatter, scatter_scale={"value": 0.5})  # a scale written by hand: its value only
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 0, "--workers", 2, "--json", out,
+                    "--md", tmp_path / "f.md", "--quiet")
+    assert result.exit_code == 0, result.output
+    assert "times 0.500)" in (tmp_path / "f.md").read_text()
 
 
 @pytest.mark.parametrize("value", [0.0, -1.0, 1e9, "2"])
