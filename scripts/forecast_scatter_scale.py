@@ -1,5 +1,6 @@
 """The forecast from one flight with the fitted [scatter] spreads and floors multiplied by a
-factor: how much more scatter than the clean impacts show would calibrate it (issue 31).
+factor (on top of the fit's scatter_scale, if it has one): how much more scatter than the clean impacts show would
+calibrate it (issue 31).
 
     python scripts/forecast_scatter_scale.py FACTOR FLIGHT [--fit out/forecast/fit_with_scatter.json] [--members 500]
 

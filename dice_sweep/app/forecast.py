@@ -123,7 +123,7 @@ def run_forecast_command(data_path, cfg, fit_path, *, from_bounce=0, members=fc.
         "data": {"path": str(data_path), "rate_hz": trackset.rate, "angle_reading": f"--angle {angle}: {trackset.angle_note}",
                  "table_height_m": table, **run.counts},
         "fit": {"path": str(fit_path), "kind": source.kind, "effects": list(source.spec(cfg).declared + source.effects), "params": source.params,
-                "scatter": source.scatter,
+                "scatter": source.scatter, "scatter_scale": source.scatter_scale,
                 "parameter_uncertainty": source.parameter_note, "data_path": source.data_path,
                 "split": {"confirm_fraction": source.confirm_fraction, "seed": source.seed},
                 "same_data": source.data_path is None or Path(str(source.data_path)).name == Path(str(data_path)).name},

@@ -96,6 +96,7 @@ class FitSource:
     # the stochastic impact law's spreads written with the fit ({"corner": s, "flat": s, "corner_floor": f, ...},
     # dice_sweep.measured.scatter), or None: the ensemble's impacts follow the fitted law exactly
     scatter: object = None
+    scatter_scale: object = None  # the factor already applied to ``scatter`` (fit_scatter_scale's dict), or None
 
     def spec(self, cfg):
         return shooting.ModelSpec.of(cfg, self.effects)
@@ -159,11 +160,12 @@ def parse_fit(data, path, cfg, confirm_fraction, seed):
     split_seed = split.get("seed", seed)
     data_path = data.get("data", {}).get("path") if isinstance(data.get("data"), dict) else None
     return FitSource(str(path), kind, extra, values, names, draws, sd, note, float(fraction), int(split_seed), data_path,
-                     data.get("angle_reading"), _scatter_of(data, path))
+                     data.get("angle_reading"), _scatter_of(data, path), _scale_of(data))
 
 
 def _scatter_of(data, path):
-    """{"corner": s, "flat": s} from a fit JSON's ``scatter`` (None without one)."""
+    """{"corner": s, "flat": s, "corner_floor": f, "flat_floor": f} from a fit JSON's ``scatter``,
+    times the JSON's ``scatter_scale`` when it has one (:func:`fit_scatter_scale`); None without one."""
     record = data.get("scatter")
     if record is None:
         return None
@@ -177,7 +179,18 @@ def _scatter_of(data, path):
             if not _number(value) or not 0.0 <= value <= MAX_SCATTER:
                 raise _fit_error(path, f"scatter.{kind}.{key} is not in [0, {MAX_SCATTER:g}]")
             spreads[name] = float(value)
+    scale = _scale_of(data)
+    if scale is not None:  # the factor fit_scatter_scale chose on the selection tracks
+        value = scale.get("value") if isinstance(scale, dict) else None
+        if not _number(value) or not 0.0 < value <= MAX_SCALE:
+            raise _fit_error(path, f"scatter_scale.value is not in (0, {MAX_SCALE:g}]")
+        spreads = scaled_scatter(spreads, value)
     return spreads
+
+
+def _scale_of(data):
+    """A fit JSON's ``scatter_scale`` (checked by :func:`_scatter_of`), or None."""
+    return data.get("scatter_scale")
 
 
 def scattered(cfg, spreads, seed):
@@ -485,6 +498,72 @@ def forecast_tracks(tracks, cfg, source, *, sigma, table=0.0, bounces=(0,), memb
     out = forecast_bounces(prepared, cfg, source, bounces, sigma=sigma, observed=observed, members=members, param_draws=param_draws,
                            seed=seed, workers=workers, log=log)
     return out, prepared, observed
+
+
+# --- one scale of the stochastic law, chosen by the forecasts' own log score (issue 31) ----------
+
+# factors tried on every spread and floor of the fitted law, sqrt(2) apart
+SCALE_GRID = (0.35, 0.5, 0.71, 1.0, 1.41, 2.0, 2.83, 4.0)
+SCALE_MEMBERS = 250  # members per track, forecast point and factor (common random numbers across factors)
+MAX_SCALE = 100.0  # a scale read from a fit JSON: above it every spread is at MAX_SCATTER anyway
+
+
+def scaled_scatter(spreads, scale):
+    """The law's spreads and floors times ``scale``, each capped at MAX_SCATTER (None stays None)."""
+    return None if spreads is None else {key: min(value * scale, MAX_SCATTER) for key, value in spreads.items()}
+
+
+def _peak(x, y):
+    """(argmax, at an end): the vertex of the parabola through the best of ``y`` over ``x`` and its two
+    neighbours, kept between them; the end point itself when the best is at an end."""
+    i = int(np.argmax(y))
+    if i == 0 or i == len(x) - 1:
+        return float(x[i]), True
+    (x0, x1, x2), (y0, y1, y2) = x[i - 1:i + 2], y[i - 1:i + 2]
+    den = (x0 - x1) * (y0 - y2) - (x0 - x2) * (y0 - y1)
+    if den == 0.0:
+        return float(x1), False
+    vertex = x0 - 0.5 * ((x0 - x1) ** 2 * (y0 - y2) - (x0 - x2) ** 2 * (y0 - y1)) / den
+    return float(np.clip(vertex, x0, x2)), False
+
+
+def fit_scatter_scale(prepared, cfg, source, bounces, *, sigma, observed, grid=SCALE_GRID, members=SCALE_MEMBERS, param_draws=PARAM_DRAWS,
+                      seed=0, workers=1, draws=BOOTSTRAP, log=None):
+    """One factor c on every spread and floor of ``source.scatter``, the same for every forecast
+    point: the c whose forecasts of the ``prepared`` tracks (the selection tracks: never those
+    to be scored) from every flight in ``bounces`` have the highest summed log score (a proper
+    scoring rule, so the c that makes the ensemble's spread match how often its sides happen;
+    the peak of a parabola in log c through the best factor of ``grid`` and its neighbours),
+    with a 95 % interval from a bootstrap over tracks (each track with all its forecast points).
+    The same members (random streams) for every factor, so the differences between factors are
+    not sampling noise. Returns a JSON-ready dict (``value`` 1: the law as estimated)."""
+    say = log or (lambda message: None)
+    spec = source.spec(cfg)
+    params = sample_params(source, cfg, min(param_draws, members), np.random.default_rng([seed, 1]))
+    trajs = sorted({p.traj for p in prepared})
+    row = {traj: i for i, traj in enumerate(trajs)}
+    flights = {k: flight_states(cfg, spec, source.params, prepared, k, sigma) for k in bounces}
+    scores = np.zeros((len(trajs), len(grid)))
+    for g, factor in enumerate(grid):
+        scaled = dataclasses.replace(source, scatter=scaled_scatter(source.scatter, factor))
+        for k in bounces:
+            if flights[k]:
+                bf = ensemble_forecast(cfg, scaled, flights[k], observed, bounce=k, members=members, seed=seed, workers=workers,
+                                       draws=params)
+                np.add.at(scores[:, g], [row[t] for t in bf.traj], log_scores(bf.probabilities, bf.observed))
+        say(f"scatter scale x {factor:g}: summed log score {scores[:, g].sum():.2f} over {len(trajs)} tracks")
+    x = np.log(np.asarray(grid, dtype=float))
+    value, at_end = _peak(x, scores.sum(axis=0))
+    rng = np.random.default_rng([seed, 3133])
+    counts = rng.multinomial(len(trajs), np.full(len(trajs), 1.0 / len(trajs)), size=draws)
+    boot = np.exp([_peak(x, c @ scores)[0] for c in counts])
+    pairs = sum(len(f) for f in flights.values())
+    return {"value": float(math.exp(value)), "ci95": _interval(boot), "at_grid_end": at_end, "grid": [float(v) for v in grid],
+            "mean_log_score": [float(v) for v in scores.sum(axis=0) / max(pairs, 1)], "tracks": len(trajs), "pairs": int(pairs),
+            "bounces": [int(k) for k in bounces], "members": int(members),
+            "rule": "one factor on every [scatter] spread and floor, the same at every forecast point, maximising the summed log "
+                    "score of the selection tracks' forecasts from every flight (parabola in log factor through the best grid "
+                    "point); 95 % interval: bootstrap over tracks"}
 
 
 @dataclass
@@ -892,6 +971,20 @@ def _z(calibration, key):
     return "-" if value is None else f"{value:.1f}"
 
 
+def _scale_text(scale):
+    """The factor on the law, as the report names it (a hand-written scatter_scale may hold its value only)."""
+    if not isinstance(scale, dict):
+        return ""
+    interval = scale.get("ci95")
+    text = f" (the spreads estimated from clean impacts times {scale['value']:.3f}"
+    if isinstance(interval, list) and len(interval) == 2:
+        text += f" [{interval[0]:.3f}, {interval[1]:.3f}]"
+    if scale.get("tracks") and scale.get("bounces"):
+        text += (f", the factor whose forecasts of {scale['tracks']} selection tracks from flights "
+                 f"{', '.join(map(str, scale['bounces']))} score best")
+    return text + (", at the end of the factors tried" if scale.get("at_grid_end") else "") + ")"
+
+
 def markdown(report):
     """The forecast report (the JSON of ``dice-sweep forecast``) as Markdown."""
     scores, data, fit, ens = report["scores"], report["data"], report["fit"], report["ensemble"]
@@ -909,7 +1002,8 @@ def markdown(report):
         f"Fit: {fit['path']} ({fit['kind']}): effects {', '.join(fit['effects']) or 'none'}; "
         + ", ".join(f"{name} = {value:.4g}" for name, value in fit["params"].items()) + f". Parameter uncertainty: {fit['parameter_uncertainty']}."
         + ("" if fit["same_data"] else f" The fit was made on {fit['data_path']}, not on this file: its split still decides which tracks are held out.")
-        + (" Impacts drawn from the fitted stochastic law: [scatter] " + ", ".join(f"{k} = {v:.4g}" for k, v in fit["scatter"].items()) + "."
+        + (" Impacts drawn from the fitted stochastic law: [scatter] " + ", ".join(f"{k} = {v:.4g}" for k, v in fit["scatter"].items())
+           + _scale_text(fit.get("scatter_scale")) + "."
            if fit.get("scatter") else " Impacts: the fitted law exactly (no [scatter] in the fit)."), "",
         f"Ensemble: {ens['members']} members per track and forecast point ({ens['param_draws']} parameter draws x "
         f"{ens['state_draws_per_param_draw']} state draws), seed {ens['seed']}; tracking noise sigma x {report['noise']['sigma_x'] * 1e3:.4f} mm, "

@@ -69,6 +69,7 @@ class ImpactResidual:
     residual2: float
     noise2: float
     probe2: float
+    impact: int = -1  # its index among the track's impacts (0: the first), for the checks by impact
 
 
 def _kernel(cfg, effects, params):
@@ -185,7 +186,7 @@ def impact_residuals(tracks, cfg, effects, params, *, sigma, table=0.0, seed=0, 
             half = len(shares) // 2
             n2 = float(np.mean(shares[half:])) if shares else 0.0
             p2 = float(np.mean(shares[:half])) if half else n2
-            out.append(ImpactResidual(int(track.traj), kind, float(u), float(residual @ residual), n2, p2))
+            out.append(ImpactResidual(int(track.traj), kind, float(u), float(residual @ residual), n2, p2, k))
     return out
 
 

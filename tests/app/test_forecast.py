@@ -276,3 +276,34 @@ def test_a_scatter_law_out_of_range_is_a_one_line_error(drops, tmp_path):
     result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json")
     assert result.exit_code == 2 and "scatter.corner.value is not in [0, 1]" in result.output
     assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "f.json").exists()
+
+
+def test_a_fitted_scale_multiplies_the_scatter_law_and_is_reported(drops, tmp_path):
+    """Issue 31: the fit JSON's scatter_scale (fit_scatter_scale's factor) multiplies every
+    spread and floor, capped at 1, and the report says so."""
+    data, _ = drops
+    scale = {"value": 1.5, "ci95": [1.2, 1.9], "tracks": 40, "bounces": [0, 1], "at_grid_end": False}
+    scatter = {"corner": {"value": 0.05, "floor": 0.1}, "flat": {"value": 0.8, "floor": 0.0}}
+    fit = fit_json(tmp_path / "scaled.json", scatter=scatter, scatter_scale=scale)
+    out = tmp_path / "f.json"
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 0, "--workers", 2, "--json", out,
+                    "--md", tmp_path / "f.md", "--quiet")
+    assert result.exit_code == 0, result.output
+    report = json.loads(out.read_text())
+    assert report["fit"]["scatter"] == pytest.approx({"corner": 0.075, "corner_floor": 0.15, "flat": 1.0, "flat_floor": 0.0})
+    assert report["fit"]["scatter_scale"]["value"] == 1.5
+    assert "times 1.500 [1.200, 1.900]" in (tmp_path / "f.md").read_text()
+    fit = fit_json(tmp_path / "bare.json", scatter=scatter, scatter_scale={"value": 0.5})  # a scale written by hand: its value only
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 0, "--workers", 2, "--json", out,
+                    "--md", tmp_path / "f.md", "--quiet")
+    assert result.exit_code == 0, result.output
+    assert "times 0.500)" in (tmp_path / "f.md").read_text()
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, 1e9, "2"])
+def test_a_scatter_scale_out_of_range_is_a_one_line_error(drops, tmp_path, value):
+    data, _ = drops
+    fit = fit_json(tmp_path / "bad.json", scatter={"corner": {"value": 0.1}, "flat": {"value": 0.1}}, scatter_scale={"value": value})
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json")
+    assert result.exit_code == 2 and "scatter_scale.value is not in (0, 100]" in result.output
+    assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "f.json").exists()

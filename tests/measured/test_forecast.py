@@ -271,3 +271,40 @@ def test_warnings_name_forecasts_below_uniform_and_parameters_at_a_bound():
     assert "beta_normal = 1 at its upper bound" in lines[1]
     quiet = scattered_source({"beta_normal": 0.4, "beta_tangential": 0.0, "friction": 0.5}, None)
     assert fc.warnings({"by_bounce": [{**scores, "log_skill_deterministic": {"value": 0.5}}]}, quiet, RIGID) == []
+
+
+# --- one scale of the law, chosen by the forecasts' log score (issue 31) ---------------------------
+
+
+def scale_of(tracks, observed, spreads):
+    sigma = (PRECISE[0], PRECISE[0], PRECISE[1])
+    source = scattered_source(dict(TRUTH_PARAMS), spreads)
+    prepared = fc.prepared_tracks(tracks.tracks, RIGID, sigma, 0.0, observed)
+    return fc.fit_scatter_scale(prepared, RIGID, source, (0, 1), sigma=sigma, observed=observed, members=200, workers=2)
+
+
+@pytest.mark.slow
+def test_the_scale_of_the_law_is_found_by_the_forecasts_log_score(scattered_drops, tmp_path_factory):
+    """Drops whose bounces scatter by 0.08: a law given at half that is scaled by about 2 (the
+    interval covers 2, not 1); the true law (the control, nothing to find) keeps an interval
+    holding 1; forecasts of other drops, from the release and from flight 1, with the scaled
+    half law are calibrated (|z| < 3)."""
+    tracks, observed = scattered_drops
+    half = {"corner": SCATTER / 2, "flat": SCATTER / 2}
+    found = scale_of(tracks, observed, half)
+    assert found["ci95"][0] <= 2.0 <= found["ci95"][1] and found["ci95"][0] > 1.2, found
+    assert not found["at_grid_end"] and found["pairs"] > 150
+    control = scale_of(tracks, observed, {"corner": SCATTER, "flat": SCATTER})
+    assert control["ci95"][0] <= 1.0 <= control["ci95"][1], control
+    truth = Truth(**TRUTH, scatter_corner=SCATTER, scatter_flat=SCATTER, scatter_seed=6)
+    other, seen = synthetic(tmp_path_factory, "scattered_other", truth, 160, 6, PRECISE, 500.0)
+    sigma = (PRECISE[0], PRECISE[0], PRECISE[1])
+    scaled = scattered_source(dict(TRUTH_PARAMS), fc.scaled_scatter(half, found["value"]))
+    out, _, _ = fc.forecast_tracks(other.tracks, RIGID, scaled, sigma=sigma, bounces=(0, 1), members=500, workers=2, observed=seen)
+    for k in (0, 1):
+        s = fc.score_bounce(out[k], 4, np.random.default_rng(0))
+        assert s["n_tracks"] >= 90
+        assert abs(s["calibration"]["log_score_z"]) < 3 and abs(s["calibration"]["brier_z"]) < 3, (k, s["calibration"])
+    unscaled = scattered_source(dict(TRUTH_PARAMS), half)
+    out, _, _ = fc.forecast_tracks(other.tracks, RIGID, unscaled, sigma=sigma, bounces=(0, 1), members=500, workers=2, observed=seen)
+    assert min(fc.score_bounce(out[k], 4, np.random.default_rng(0))["calibration"]["log_score_z"] for k in (0, 1)) < -3  # the test has power

@@ -1,0 +1,168 @@
+"""Why forecasts from flight 1 are overconfident, measured on the SELECTION tracks only (issue 31).
+
+    python scripts/forecast_diagnosis.py residuals   # (a) impact residuals against the law, by impact / speed / kind
+    python scripts/forecast_diagnosis.py flights     # (b) the flight-K states: frames, reduced chi-square, sds
+    python scripts/forecast_diagnosis.py calibration [--members 500] [--scale S]  # forecasts of the selection tracks, every K
+    python scripts/forecast_diagnosis.py scale       # fit_scatter_scale on the selection tracks -> out/forecast/<fit>_scaled.json
+
+The fit is the cross-fitted diagnose's held-out model (out/measured/report.json, or --fit):
+fold 0's model, chosen and fitted on fold 1's tracks, which are the selection tracks here; the
+held-out half is never read. Prints JSON lines; docs/dev/forecast_flight1.md is written from them.
+"""
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+DATA = ROOT.parent / "shared" / "data" / "mcube_square_drops" / "drops.csv.gz"
+CONFIG = ROOT / "configs" / "square_drops.toml"
+OUT = ROOT / "out" / "forecast"
+
+
+def context(args):
+    from dice_sweep.app.forecast import read_fit_file
+    from dice_sweep.config import load_config
+    from dice_sweep.measured.noise import tracking_noise
+    from dice_sweep.measured.tracks import load_tracks
+
+    cfg = load_config(CONFIG)
+    source = read_fit_file(args.fit, cfg)
+    tracks = load_tracks(DATA, sides=cfg.die.sides, circumradius=cfg.die.circumradius, angle="auto")
+    table, _, sigma = tracking_noise(tracks, cfg)
+    select_set, _ = tracks.split(source.confirm_fraction, source.seed)  # the held-out half is not kept
+    return cfg, source, select_set, table, sigma
+
+
+def law_variance(kind, u, law, speed):
+    """The law's per-component variance ((m/s)^2) at approach u, capped as the kernel caps it."""
+    s, f = law[kind]["value"] or 0.0, (law[kind]["floor"] or 0.0) * speed
+    return min(s * s * u * u + f * f, u * u)
+
+
+def residuals(args):
+    from dice_sweep.measured.impacts import find_impacts
+    from dice_sweep.measured.scatter import ImpactResidual, estimate_spreads, impact_residuals
+
+    cfg, source, select_set, table, sigma = context(args)
+    speed = math.sqrt(source.params.get("g", cfg.world.g) * cfg.die.circumradius)
+    cache = OUT / f"selection_residuals_{Path(args.fit).stem}.json"
+    if cache.exists():  # the residuals of the same fit and tracks (delete it after changing either)
+        saved = json.loads(cache.read_text())
+        rows, found = [ImpactResidual(**r) for r in saved["rows"]], {int(k): v for k, v in saved["found"].items()}
+    else:
+        rows = impact_residuals(select_set.tracks, cfg, source.effects, source.params, sigma=sigma, table=table, seed=source.seed)
+        found = {}
+        for track in select_set.tracks:
+            n = len(find_impacts(track.t, track.y, track.phi, track.usable, sides=cfg.die.sides, circumradius=cfg.die.circumradius,
+                                 table=table, g=source.params.get("g", cfg.world.g)))
+            for k in range(n):
+                found[min(k, 4)] = found.get(min(k, 4), 0) + 1
+    law = estimate_spreads(rows, speed=speed, seed=source.seed)
+    OUT.mkdir(parents=True, exist_ok=True)
+    cache.write_text(json.dumps({"rows": [dataclasses.asdict(r) for r in rows], "law": law, "found": found}, default=float))
+    if args.law:  # another law to test against the same residuals: corner, corner_floor, flat, flat_floor
+        c, cf, f, ff = (float(v) for v in args.law.split(","))
+        law = {"corner": {"value": c, "floor": cf}, "flat": {"value": f, "floor": ff}}
+    print(json.dumps({"law": {k: {key: law[k].get(key) for key in ("value", "ci95", "floor", "floor_ci95", "impacts")} for k in law}}))
+    ratio = np.array([((r.residual2 - r.noise2) / 3.0) / law_variance(r.kind, r.approach, law, speed) for r in rows])
+    index = np.array([min(r.impact, 4) for r in rows])
+    u = np.array([r.approach for r in rows]) / speed
+    kind = np.array([r.kind for r in rows])
+
+    def group(mask):
+        got = ratio[mask]
+        if not got.size:
+            return {"impacts": 0}
+        boot = np.random.default_rng(0).choice(got, size=(2000, got.size)).mean(axis=1)
+        return {"impacts": int(got.size), "mean_ratio": round(float(got.mean()), 3),
+                "ci95": [round(float(v), 3) for v in np.quantile(boot, [0.025, 0.975])], "median_u_sqrtgR": round(float(np.median(u[mask])), 2)}
+
+    for k in range(5):
+        print(json.dumps({"by_impact": k if k < 4 else "4+", "found": found.get(k, 0), **group(index == k)}))
+    for low, high in ((0, 0.5), (0.5, 1.0), (1.0, 1.5), (1.5, 2.5), (2.5, 99)):
+        print(json.dumps({"by_u_sqrtgR": [low, high], **group((u >= low) & (u < high))}))
+    for name in ("corner", "flat"):
+        for first in (True, False):
+            print(json.dumps({"kind": name, "first_impact": first, **group((kind == name) & ((index == 0) == first))}))
+
+
+def flights(args):
+    from dice_sweep.measured import forecast as fc
+
+    cfg, source, select_set, table, sigma = context(args)
+    observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
+    prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    for k in range(4):
+        states = fc.flight_states(cfg, source.spec(cfg), source.params, prepared, k, sigma)
+        sd = np.array([np.sqrt(np.diag(f.cov)) for f in states])
+        print(json.dumps({"flight": k, "tracks": len(states), "frames_median": float(np.median([f.frames for f in states])),
+                          "birge_median": float(np.median([f.birge for f in states])),
+                          "birge_q90": float(np.quantile([f.birge for f in states], 0.9)),
+                          "sd_median": {"x_mm": 1e3 * float(np.median(sd[:, 0])), "y_mm": 1e3 * float(np.median(sd[:, 1])),
+                                        "phi_mrad": 1e3 * float(np.median(sd[:, 2])), "vx_mm_s": 1e3 * float(np.median(sd[:, 3])),
+                                        "vy_mm_s": 1e3 * float(np.median(sd[:, 4])), "omega_rad_s": float(np.median(sd[:, 5]))}}))
+
+
+def calibration(args):
+    from dice_sweep.measured import forecast as fc
+
+    cfg, source, select_set, table, sigma = context(args)
+    if source.scatter is None:
+        law = json.loads((OUT / f"selection_residuals_{Path(args.fit).stem}.json").read_text())["law"]
+        source = dataclasses.replace(source, scatter={name: (law[kind][key] or 0.0) for kind in ("corner", "flat")
+                                                      for key, name in (("value", kind), ("floor", f"{kind}_floor"))})
+    if args.law:
+        c, cf, f, ff = (float(v) for v in args.law.split(","))
+        source = dataclasses.replace(source, scatter={"corner": c, "corner_floor": cf, "flat": f, "flat_floor": ff})
+    source = dataclasses.replace(source, scatter=fc.scaled_scatter(source.scatter, args.scale))
+    observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
+    prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    out = fc.forecast_bounces(prepared, cfg, source, [int(k) for k in args.flights.split(",")], sigma=sigma, observed=observed, members=args.members, workers=2)
+    for k, b in out.items():
+        s = fc.score_bounce(b, cfg.die.sides, np.random.default_rng(0))
+        print(json.dumps({"scale": args.scale, "law": source.scatter, "flight": k, "tracks": s["n_tracks"], "log_skill": s["log_skill"],
+                          "z": [s["calibration"]["log_score_z"], s["calibration"]["brier_z"]],
+                          "most_likely_right": s["share_correct_most_likely"]["value"]}), flush=True)
+
+
+def scale(args):
+    """fit_scatter_scale on the selection tracks; the fit JSON with it written to out/forecast/<fit>_scaled.json."""
+    from dice_sweep.measured import forecast as fc
+    from dice_sweep.measured.report import jsonable
+
+    cfg, source, select_set, table, sigma = context(args)
+    observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
+    prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    bounces = [k for k, count in enumerate(fc.flight_counts(prepared)) if count >= fc.MIN_BOUNCE_TRACKS]
+    found = fc.fit_scatter_scale(prepared, cfg, source, bounces, sigma=sigma, observed=observed, workers=2,
+                                 log=lambda line: print(line, file=sys.stderr))
+    data = json.loads(Path(args.fit).read_text())
+    data["scatter_scale"] = found
+    (OUT / f"{Path(args.fit).stem}_scaled.json").write_text(json.dumps(jsonable(data), indent=1))
+    print(json.dumps({k: v for k, v in found.items() if k != "rule"}))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("what", choices=("residuals", "flights", "calibration", "scale"))
+    parser.add_argument("--fit", default=str(ROOT / "out" / "measured" / "report.json"))
+    parser.add_argument("--members", type=int, default=500)
+    parser.add_argument("--scale", type=float, default=1.0)
+    parser.add_argument("--law", help="test this law instead of the fit's: corner,corner_floor,flat,flat_floor")
+    parser.add_argument("--flights", default="0,1,2,3", help="calibration: the forecast points")
+    args = parser.parse_args()
+    if not DATA.exists():
+        print(f"skipped: {DATA} not found")
+        return 0
+    {"residuals": residuals, "flights": flights, "calibration": calibration, "scale": scale}[args.what](args)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
