@@ -414,10 +414,13 @@ def _contact_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c):
         return _rolling_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c)
     sc = math.sin(chi)
     cc = math.cos(chi)
-    vx, vy = _com_velocity(chi, omega, up, rho, 0.0)
-    speed = math.sqrt(vx * vx + vy * vy)
-    drag_x = -c * speed * vx
-    drag_y = -c * speed * vy
+    drag_x = 0.0
+    drag_y = 0.0
+    if c != 0.0:  # without drag the zero terms below add nothing: skip the square root
+        vx, vy = _com_velocity(chi, omega, up, rho, 0.0)
+        speed = math.sqrt(vx * vx + vy * vy)
+        drag_x = -c * speed * vx
+        drag_y = -c * speed * vy
     if mode == MODE_STICK:
         torque = rho * cc * (drag_y - g) - rho * sc * drag_x  # about the corner
         domega = torque / (inertia + rho * rho)
