@@ -585,7 +585,7 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, ch
     return 0
 
 
-@numba.njit(inline="always")
+@numba.njit(cache=True)  # a call, not inlined: five inlined copies cost compile time for ~10 calls a pivot
 def _event_margin(code, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left):
     """A continuous function of contact state y that is >= 0 where event ``code`` of
     :func:`_contact_event` holds (the same formulas), to steer the search for its time; NaN
