@@ -57,7 +57,7 @@ ODE_FIRST_STEP = 1e-2  # x sqrt(rho/g): trial first step (the error control adap
 ODE_MAX_STEP = 5e-2  # x sqrt(rho/g): longest step, so that a brief event is still seen
 ODE_MIN_STEP = 1e-13  # x sqrt(rho/g): a step this short is taken whatever its error
 EVENT_SAMPLES = 4  # an accepted step's dense output is tested at 1/4, 1/2, 3/4 for events
-EVENT_TIME_TOL = 1e-13  # x sqrt(rho/g): width of the bisection bracket of an event time
+EVENT_TIME_TOL = 1e-13  # x sqrt(rho/g): width of the bracket of an event time (Illinois, safeguarded)
 STICK_SAMPLE = 1e-2  # rad: spacing of the tests for lift-off and slip on a closed-form sticking path
 STICK_TURN_MARGIN = 1e-9  # x g rho: least energy over the top for a closed-form sticking path
 # x sqrt(g rho): a slip this slow at the start of a pivot is round-off of a corner brought to
@@ -752,8 +752,9 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     without drag take the exact path (:func:`_stick_closed_form`) where it applies; the rest
     is integrated by adaptive Dormand-Prince 5(4) steps with a local error below ODE_TOL of
     the die's scales. After each accepted step the event predicate (:func:`_contact_event`) is tested at its end
-    and, when it holds there, on the step's dense output at EVENT_SAMPLES points and by
-    bisection to EVENT_TIME_TOL; the step is then taken again, for real, to the event, so that
+    and, when it holds there, on the step's dense output at EVENT_SAMPLES points, then the
+    bracket is shrunk to EVENT_TIME_TOL by Illinois steps on the event's margin
+    (:func:`_event_margin`), the predicate deciding which end moves; the step is then taken again, for real, to the event, so that
     the event holds in the state returned (the loop's next pass acts on it).
     """
     g = fpar[FP_G]
