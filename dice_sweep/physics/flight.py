@@ -34,6 +34,8 @@ import numpy as np
 
 from dice_sweep.physics.params import (
     CORNER_STRIDE,
+    FP_COM_X,
+    FP_COM_Y,
     FP_CORNER_RADIUS,
     FP_CORNERS,
     FP_DRAG,
@@ -55,6 +57,12 @@ STALLED = -2.0  # the search did not converge within MAX_SEARCH_STEPS
 MAX_SEARCH_STEPS = 200000
 DRAG_MIN_STEP = 1e-8  # x sqrt(R/g): shortest; below it the step is taken whatever its error
 REACH_MARGIN = 1e-6  # x rho_max: a surface farther than the die's reach by this cannot be touched
+# A fair die with this many sides or more: the drag-free search visits, on the table, the
+# NEAR_CORNERS corners either side of the lowest and bounds the rest (issue 33: n = 20 spent
+# most of a roll on the corner loop). REST_MARGIN (relative) covers round-off in that bound.
+NEAR_MIN_SIDES = 12
+NEAR_CORNERS = 2
+REST_MARGIN = 1e-9
 
 
 @numba.njit(cache=True)
@@ -260,6 +268,13 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
     return step
 
 
+@numba.njit(inline="always")
+def _table_gap(fpar, k, cos_phi, sin_phi, h):
+    """Gap (m) of corner k above the table with the centre of mass ``h`` above it."""
+    base = FP_CORNERS + CORNER_STRIDE * k
+    return h + fpar[base] * (sin_phi * fpar[base + 1] + cos_phi * fpar[base + 2])
+
+
 @numba.njit(cache=True)
 def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, phi0, vx0, vy0, omega):
     """Drag-free contact search from the state (x0, y0, phi0, vx0, vy0, omega): the steps of
@@ -289,6 +304,8 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     rho_max = fpar[FP_RHO_MAX]
     arc = fpar[FP_CORNER_RADIUS]
     x, y, phi, vy = x0, y0, phi0, vy0
+    few_near = n >= NEAR_MIN_SIDES and fpar[FP_COM_X] == 0.0 and fpar[FP_COM_Y] == 0.0 and n_surf == 1
+    per_rad = n / (2.0 * math.pi)
     tau = 0.0
     result = STALLED
     hit_surf = -1
@@ -313,24 +330,50 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                 cphi = math.cos(phi)
                 sphi = math.sin(phi)
                 trig = True
-            for k in range(n):
-                base = FP_CORNERS + CORNER_STRIDE * k
-                rho = fpar[base]
-                rx = rho * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
-                ry = rho * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
-                f = h + nx * rx + ny * ry
-                fp = hv + omega * (ny * rx - nx * ry)
-                m2 = accel + rho * omega * omega
-                if f <= tol:
-                    if fp < -contact_speed:
-                        if best_corner < 0 or fp < best_rate:
-                            hit_surf = surf
-                            best_corner = k
-                            best_rate = fp
+            first = 0
+            count = n
+            if few_near and surf == SURF_TABLE:
+                # corner k of a fair die is at phi + 2 pi k / n: the lowest is the nearest to -pi/2
+                first = int(math.floor((-0.5 * math.pi - phi) * per_rad + 0.5)) % n - NEAR_CORNERS
+                first += n if first < 0 else 0
+                count = 2 * NEAR_CORNERS + 1
+            while True:
+                for j in range(count):
+                    k = first + j
+                    k -= n if k >= n else 0
+                    base = FP_CORNERS + CORNER_STRIDE * k
+                    rho = fpar[base]
+                    rx = rho * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
+                    ry = rho * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
+                    f = h + nx * rx + ny * ry
+                    fp = hv + omega * (ny * rx - nx * ry)
+                    m2 = accel + rho * omega * omega
+                    if f <= tol:
+                        if fp < -contact_speed:
+                            # ties go to the lowest index, in whatever order the corners come
+                            if best_corner < 0 or fp < best_rate or (fp == best_rate and surf == hit_surf and k < best_corner):
+                                hit_surf = surf
+                                best_corner = k
+                                best_rate = fp
+                        else:
+                            step = min(step, max(_touching_step(f, fp, m2, tol), min_step))
                     else:
-                        step = min(step, max(_touching_step(f, fp, m2, tol), min_step))
-                else:
-                    step = min(step, safe_step(f, fp, m2))
+                        step = min(step, safe_step(f, fp, m2))
+                if count == n:
+                    break
+                # The corners not visited are a run of the cycle without the lowest: no lower
+                # than the nearer of its two ends (a fair die's heights rise away from the
+                # bottom), no faster than hv + |omega| rho. Unless that bound shows that none
+                # can touch now nor shorten the step, every corner is visited, as without it:
+                # the step and the contact are the full loop's, bit for bit.
+                f_rest = min(_table_gap(fpar, first - 1 + (n if first == 0 else 0), cphi, sphi, h),
+                             _table_gap(fpar, first + count - (n if first + count >= n else 0), cphi, sphi, h))
+                f_rest -= REST_MARGIN * rho_max
+                rho = fpar[FP_CORNERS]
+                if f_rest > tol and safe_step(f_rest, hv - abs(omega) * rho * (1.0 + REST_MARGIN), accel + rho * omega * omega) > step * (1.0 + REST_MARGIN):
+                    break
+                first = 0
+                count = n
         if best_corner >= 0:
             hit_corner = best_corner
             result = tau

@@ -57,7 +57,7 @@ ODE_FIRST_STEP = 1e-2  # x sqrt(rho/g): trial first step (the error control adap
 ODE_MAX_STEP = 5e-2  # x sqrt(rho/g): longest step, so that a brief event is still seen
 ODE_MIN_STEP = 1e-13  # x sqrt(rho/g): a step this short is taken whatever its error
 EVENT_SAMPLES = 4  # an accepted step's dense output is tested at 1/4, 1/2, 3/4 for events
-EVENT_TIME_TOL = 1e-13  # x sqrt(rho/g): width of the bisection bracket of an event time
+EVENT_TIME_TOL = 1e-13  # x sqrt(rho/g): width of the bracket of an event time (Illinois, safeguarded)
 STICK_SAMPLE = 1e-2  # rad: spacing of the tests for lift-off and slip on a closed-form sticking path
 STICK_TURN_MARGIN = 1e-9  # x g rho: least energy over the top for a closed-form sticking path
 # x sqrt(g rho): a slip this slow at the start of a pivot is round-off of a corner brought to
@@ -414,10 +414,13 @@ def _contact_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c):
         return _rolling_rates(chi, omega, up, mode, rho, arc, inertia, g, mu, c)
     sc = math.sin(chi)
     cc = math.cos(chi)
-    vx, vy = _com_velocity(chi, omega, up, rho, 0.0)
-    speed = math.sqrt(vx * vx + vy * vy)
-    drag_x = -c * speed * vx
-    drag_y = -c * speed * vy
+    drag_x = 0.0
+    drag_y = 0.0
+    if c != 0.0:  # without drag the zero terms below add nothing: skip the square root
+        vx, vy = _com_velocity(chi, omega, up, rho, 0.0)
+        speed = math.sqrt(vx * vx + vy * vy)
+        drag_x = -c * speed * vx
+        drag_y = -c * speed * vy
     if mode == MODE_STICK:
         torque = rho * cc * (drag_y - g) - rho * sc * drag_x  # about the corner
         domega = torque / (inertia + rho * rho)
@@ -582,6 +585,25 @@ def _contact_event(fpar, n, corner, px, y, mode, rho, arc, inertia, g, mu, c, ch
     return 0
 
 
+@numba.njit(cache=True)  # a call, not inlined: five inlined copies cost compile time for ~10 calls a pivot
+def _event_margin(code, y, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left):
+    """A continuous function of contact state y that is >= 0 where event ``code`` of
+    :func:`_contact_event` holds (the same formulas), to steer the search for its time; NaN
+    for the events without one here (walls, the decision: those are bisected)."""
+    chi, omega = y[0], y[1]
+    if code == 1:
+        return chi_right - chi if omega < 0.0 else chi - chi_left
+    if code != 3 and code != 4:
+        return math.nan
+    _, _, _, _, normal, friction = _contact_rates(chi, omega, y[3], mode, rho, arc, inertia, g, mu, c)
+    if mode != MODE_STICK:
+        return -normal if code == 3 else -mode * y[3]
+    if code == 4:
+        return abs(friction) - mu * normal
+    vx, vy = _com_velocity(chi, omega, y[3], rho, arc)
+    return -g - c * math.sqrt(vx * vx + vy * vy) * vy + omega * omega * rho * math.sin(chi)
+
+
 @numba.njit(cache=True)
 def _stick_event(y, rho, inertia, g, mu):
     """Lift-off (3) or slip (4) of a sticking corner without drag in state y, else 0: the
@@ -730,8 +752,9 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     without drag take the exact path (:func:`_stick_closed_form`) where it applies; the rest
     is integrated by adaptive Dormand-Prince 5(4) steps with a local error below ODE_TOL of
     the die's scales. After each accepted step the event predicate (:func:`_contact_event`) is tested at its end
-    and, when it holds there, on the step's dense output at EVENT_SAMPLES points and by
-    bisection to EVENT_TIME_TOL; the step is then taken again, for real, to the event, so that
+    and, when it holds there, on the step's dense output at EVENT_SAMPLES points, then the
+    bracket is shrunk to EVENT_TIME_TOL by Illinois steps on the event's margin
+    (:func:`_event_margin`), the predicate deciding which end moves; the step is then taken again, for real, to the event, so that
     the event holds in the state returned (the loop's next pass acts on it).
     """
     g = fpar[FP_G]
@@ -819,25 +842,62 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
         h = min(max(h if step < h else 0.0, step * grow), h_max)
         probe = _contact_event(fpar, n, corner, px, trial, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit)
         if _event_holds(probe, stop_at_decision):
-            # first sample of the dense output where the event holds, then bisection
+            # first sample of the dense output where the event holds, then the bracket
+            # [lo, hi] (no event at lo, the event at hi) shrunk to EVENT_TIME_TOL
             lo = 0.0
             hi = step
+            code = probe
             for j in range(1, EVENT_SAMPLES):
                 theta = j / EVENT_SAMPLES
                 _dp5_dense(y, step, k, theta, tmp)
                 found = _contact_event(fpar, n, corner, px, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit)
                 if _event_holds(found, stop_at_decision):
                     hi = theta * step
+                    code = found
                     break
                 lo = theta * step
+            _dp5_dense(y, step, k, hi / step, tmp)
+            f_hi = _event_margin(code, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left)
+            _dp5_dense(y, step, k, lo / step, tmp)
+            f_lo = _event_margin(code, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left)
+            # Illinois steps on the event's margin, safeguarded: the event predicate alone
+            # decides which end moves, a trial is kept t_tol / 2 inside the bracket, and a
+            # bracket that did not halve over two trials is bisected
+            side = 0
+            width_1 = math.inf  # bracket width one and two trials ago
+            width_2 = math.inf
             while hi - lo > t_tol:
-                mid = 0.5 * (lo + hi)
+                width = hi - lo
+                if f_lo < 0.0 <= f_hi and width <= 0.5 * width_2:
+                    mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+                    mid = min(max(mid, lo + 0.5 * t_tol), hi - 0.5 * t_tol)
+                else:
+                    mid = 0.5 * (lo + hi)
+                    side = 0
+                width_2 = width_1
+                width_1 = width
                 _dp5_dense(y, step, k, mid / step, tmp)
                 found = _contact_event(fpar, n, corner, px, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left, state, hit)
                 if _event_holds(found, stop_at_decision):
                     hi = mid
+                    if found != code:
+                        # another event comes first: steer by its margin from now on
+                        code = found
+                        f_hi = _event_margin(code, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left)
+                        _dp5_dense(y, step, k, lo / step, tmp)
+                        f_lo = _event_margin(code, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left)
+                        side = 0
+                        continue
+                    f_hi = _event_margin(code, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left)
+                    if side == 1:
+                        f_lo *= 0.5
+                    side = 1
                 else:
                     lo = mid
+                    f_lo = _event_margin(code, tmp, mode, rho, arc, inertia, g, mu, c, chi_right, chi_left)
+                    if side == -1:
+                        f_hi *= 0.5
+                    side = -1
             # a real step to hi; where the dense output was off by its own small error and the
             # event does not hold there yet, move on by doubling amounts (the full step has it)
             gap = t_tol

@@ -151,16 +151,24 @@ def tolerances(fpar):
         {"sides": 7, "separation": 0.06},
         {"separation": 0.04, "com_offset": (0.002, -0.001)},
         {"separation": 0.05, "beta_t": 0.0},
+        {"sides": 12},  # many sides: the search visits the corners near the lowest only
+        {"sides": 20},
+        {"sides": 20, "separation": 0.06},
     ],
 )
 def test_search_matches_the_generic_scan_bitwise(kwargs, rng):
     fpar, ipar = make_params(**kwargs)
     tol, min_step, contact_speed = tolerances(fpar)
+    sides = ipar[IP_N]
     states = random_states(rng, 400, y_range=(0.0, 0.2))
     states[:, 0] = rng.uniform(-0.01, 0.01, len(states))
     # start some of them touching the table, as after an impact or a lift-off
     states[::4, 1] = fpar[FP_RHO_MAX] * rng.uniform(0.7, 1.0, len(states[::4]))
     states[1::5, 5] = 0.0  # no spin: the walls' curvature bound is zero
+    # dropped flat without spin on the side from corner n-1 to corner 0: two corners touch at
+    # once, equally fast (the lower index is the contact)
+    states[2::7, 2] = -0.5 * math.pi + math.pi / sides
+    states[2::7, 5] = 0.0
     hit_a = np.zeros(2, np.int64)
     hit_b = np.zeros(2, np.int64)
     out_a = np.empty(6)
