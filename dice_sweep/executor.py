@@ -38,9 +38,10 @@ MAX_WORKERS = 1024  # worker processes; more would fork one per tile of a large 
 EXECUTORS = ("local", "dask")
 _PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 _STOP_POLL_SECONDS = 0.2  # how often the parent looks for Ctrl-C while workers compute
-# A worker's results go to the parent together, at most this often: each message wakes the parent
-# (a third process on the workers' cores), whose first tile written per wake-up cost 5 times
-# the next ones (cold caches) in scripts/profile_sweep.py. An item slower than this goes alone.
+# A worker's results go to the parent together, one message per this long: each message wakes the
+# parent, a third process on the workers' cores, and a tile written right after another costs it
+# less (fig08, 2 ms tiles: 0.18-0.25 ms a write instead of 0.31-0.34; docs/dev/sweep_time.md).
+# An item slower than this goes alone.
 SEND_SECONDS = 0.05
 
 
