@@ -13,7 +13,8 @@ Locally, one worker computes in this process; more are forked processes (which s
 the parent loaded or compiled) taking items from a shared counter and sending their results
 on a pipe of their own, gathered into one message per SEND_SECONDS (the parent wakes once
 per message, not once per item: docs/dev/sweep_time.md). A worker that raises sends its
-error and traceback; one that dies ends the run with a one-line error; Ctrl-C stops them all (:class:`StopRequest`).
+error and traceback; one that dies ends the run with a one-line error; Ctrl-C stops them all
+(:class:`StopRequest`).
 """
 
 from __future__ import annotations
