@@ -51,12 +51,14 @@ def children_cpu():
     return usage.ru_utime + usage.ru_stime
 
 
-def timed_sweep(args, cfg, path, workers):
-    """(wall s, this process's CPU s, children's CPU s) of one sweep into ``path``."""
+def timed_sweep(args, overrides, path, workers):
+    """(wall s, this process's CPU s, children's CPU s) of one sweep of ``args.config`` with
+    ``overrides`` into ``path``."""
+    cfg = load_config(args.config, overrides)
     wall, cpu, children = time.perf_counter(), time.process_time(), children_cpu()
     if args.cli:
         command = [*CLI, "sweep", args.config, "-o", str(path), "--workers", str(workers), "--quiet"]
-        for override in args.overrides:
+        for override in overrides:
             command += ["--set", override]
         subprocess.run(command, check=True, capture_output=True)
     else:
@@ -91,14 +93,15 @@ def main():
     with tempfile.TemporaryDirectory() as folder:
         folder = pathlib.Path(folder)
         if args.cli:  # one untimed command: the files it reads are then in the OS's cache for every timed one
-            timed_sweep(args, load_config(args.config, [*args.overrides, "grid.x.num=2", "grid.y.num=2"]), folder / "warm.h5", 1)
+            tiny = [item for item in args.overrides if not item.startswith(("grid.x.num=", "grid.y.num="))]
+            timed_sweep(args, [*tiny, "grid.x.num=2", "grid.y.num=2"], folder / "warm.h5", 1)
         reference = None
         times = {workers: [] for workers in args.workers}
         for round_ in range(args.repeat):
             print(f"round {round_ + 1}: load average (1, 5, 15 min) {load()} on {os.cpu_count()} cores", flush=True)
             for workers in args.workers:
                 path = folder / f"workers{workers}-{round_}.h5"
-                times[workers].append(timed_sweep(args, cfg, path, workers))
+                times[workers].append(timed_sweep(args, args.overrides, path, workers))
                 outcome = read_sweep(path).outcome
                 if reference is None:
                     reference = outcome
