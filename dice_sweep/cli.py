@@ -158,8 +158,8 @@ def run():
     command that runs the kernels, an exit that skips the interpreter's teardown.
 
     Such a command has closed its files and joined its workers when it returns; the teardown
-    of numba's and LLVM's objects after it took 0.25 s of CPU (median of 6 ``sweep`` commands
-    on 2 x 2 cells: 0.85 s of CPU with it, 0.60 without; docs/dev/sweep_time.md), a serial
+    of numba's and LLVM's objects after it took 0.25 s of CPU (medians of 6 ``sweep`` commands
+    on 2 x 2 cells: 0.855 s of CPU with it, 0.595 without; docs/dev/sweep_time.md), a serial
     cost no worker shares. The exit handlers (atexit) still run, and stdout and stderr are
     flushed. Tests call :func:`main` in-process and so never exit here.
     """
@@ -176,7 +176,7 @@ def run():
         code = 1
     import atexit
 
-    atexit._run_exitfuncs()
+    atexit._run_exitfuncs()  # what the interpreter runs first at exit (no public name for it)
     sys.stdout.flush()
     sys.stderr.flush()
     os._exit(code or 0)

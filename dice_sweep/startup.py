@@ -25,8 +25,8 @@ for BLAS by importing ``scipy.linalg`` when SciPy is installed: 0.3 to 0.5 s, ab
 of a warm ``dice-sweep roll`` (found with cProfile of ``SweepJob.warm_up``). The kernels here
 use no BLAS (no np.dot, no np.linalg), so the CLI's ``roll`` and ``sweep`` commands tell
 numba there is none; likewise numba's cffi support, whose ``cffi.FFI()`` imports a C parser
-(30 ms of CPU, ``python -X importtime``; docs/dev/sweep_time.md). Not done on import of the library: in a user's own process, numba code
-of theirs may need BLAS.
+(30 ms of CPU, ``python -X importtime``; docs/dev/sweep_time.md). Not done on import of the
+library: in a user's own process, numba code of theirs may need BLAS or cffi.
 """
 
 import functools
