@@ -43,8 +43,9 @@ from dice_sweep.storage import (
 DEFAULT_TILE_SHAPE = (64, 64)
 # Grids of at least LARGE_GRID_CELLS cells (1024 x 1024) are cut into tiles of LARGE_TILE_SHAPE:
 # a tile costs about 0.8 ms beyond its rolls and encoding (sending, the parent's receiving and
-# writing), 10 % of fig08's 64 x 64 tile; a 128 x 128 tile shares it over 4 times the rolls, and such a grid still
-# has 64 tiles or more, so the last tile a worker takes is a short tail (docs/dev/sweep_time.md).
+# writing), 10 % of fig08's 64 x 64 tile; a 128 x 128 tile shares it over 4 times the rolls,
+# and such a grid still has 64 tiles or more, so the last tile a worker takes is a short tail
+# (docs/dev/sweep_time.md).
 LARGE_TILE_SHAPE = (128, 128)
 LARGE_GRID_CELLS = 64 * LARGE_TILE_SHAPE[0] * LARGE_TILE_SHAPE[1]
 
