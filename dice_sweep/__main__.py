@@ -1,3 +1,3 @@
-from dice_sweep.cli import main
+from dice_sweep.cli import run
 
-main()
+run()

@@ -24,8 +24,9 @@ The first time numba loads a cached function it imports ``numba.np.arraymath``, 
 for BLAS by importing ``scipy.linalg`` when SciPy is installed: 0.3 to 0.5 s, about a third
 of a warm ``dice-sweep roll`` (found with cProfile of ``SweepJob.warm_up``). The kernels here
 use no BLAS (no np.dot, no np.linalg), so the CLI's ``roll`` and ``sweep`` commands tell
-numba there is none. Not done on import of the library: in a user's own process, numba code
-of theirs may need BLAS.
+numba there is none; likewise numba's cffi support, whose ``cffi.FFI()`` imports a C parser
+(30 ms of CPU, ``python -X importtime``; docs/dev/sweep_time.md). Not done on import of the
+library: in a user's own process, numba code of theirs may need BLAS or cffi.
 """
 
 import functools
@@ -154,27 +155,39 @@ def notify_first_compile(callback):
 
     event.register("numba:compile", _FirstCompile())
 
-_BLOCKED = ("scipy.linalg", "scipy.linalg.cython_blas")
+# numba module -> what it imports only to support what the kernels do not use
+_SKIPPED = {
+    "numba.np.arraymath": ("scipy.linalg", "scipy.linalg.cython_blas"),  # the BLAS probe
+    "numba.core.typing.cffi_utils": ("cffi",),  # cffi.FFI() parses C declarations: 30 ms of CPU
+}
 
 
-class _NoScipyLinalg(importlib.abc.MetaPathFinder):
+class _Hidden(importlib.abc.MetaPathFinder):
+    def __init__(self, names):
+        self.names = names
+
     def find_spec(self, name, path=None, target=None):
-        if name in _BLOCKED:
-            raise ImportError(f"{name}: not imported while numba probes for BLAS (dice_sweep fast start)")
+        if name in self.names:
+            raise ImportError(f"{name}: not imported while numba looks for it (dice_sweep fast start)")
         return None
 
 
 def skip_numba_blas_probe() -> bool:
-    """Import numba's array-math registry with scipy.linalg hidden; True if that took effect.
+    """Import numba's array-math registry with scipy.linalg hidden, and its cffi support with
+    cffi hidden; True if the BLAS probe was skipped.
 
-    Does nothing (False) when the registry or scipy.linalg is imported already.
+    Each does nothing when the numba module or the hidden one is imported already (False for
+    the BLAS probe). The kernels call no BLAS and no cffi function.
     """
-    if "numba.np.arraymath" in sys.modules or "scipy.linalg" in sys.modules:
-        return False
-    finder = _NoScipyLinalg()
-    sys.meta_path.insert(0, finder)
-    try:
-        import numba.np.arraymath  # noqa: F401  (sets its _HAVE_BLAS = False)
-    finally:
-        sys.meta_path.remove(finder)
-    return True
+    skipped = {}
+    for module, hidden in _SKIPPED.items():
+        skipped[module] = module not in sys.modules and not any(name in sys.modules for name in hidden)
+        if not skipped[module]:
+            continue
+        finder = _Hidden(hidden)
+        sys.meta_path.insert(0, finder)
+        try:
+            importlib.import_module(module)  # numba.np.arraymath: _HAVE_BLAS = False; cffi_utils: SUPPORTED = False
+        finally:
+            sys.meta_path.remove(finder)
+    return skipped["numba.np.arraymath"]

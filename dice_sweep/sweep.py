@@ -41,6 +41,13 @@ from dice_sweep.storage import (
 )
 
 DEFAULT_TILE_SHAPE = (64, 64)
+# Grids of at least LARGE_GRID_CELLS cells (1024 x 1024) are cut into tiles of LARGE_TILE_SHAPE:
+# a tile costs about 0.8 ms beyond its rolls and encoding (sending, the parent's receiving and
+# writing), 10 % of fig08's 64 x 64 tile; a 128 x 128 tile shares it over 4 times the rolls,
+# and such a grid still has 64 tiles or more, so the last tile a worker takes is a short tail
+# (docs/dev/sweep_time.md).
+LARGE_TILE_SHAPE = (128, 128)
+LARGE_GRID_CELLS = 64 * LARGE_TILE_SHAPE[0] * LARGE_TILE_SHAPE[1]
 
 
 class SweepInterrupted(DiceSweepError):
@@ -202,9 +209,10 @@ class SweepJob:
     sides: int = 0
 
     @classmethod
-    def from_config(cls, cfg, tile_shape=DEFAULT_TILE_SHAPE) -> "SweepJob":
+    def from_config(cls, cfg, tile_shape=None) -> "SweepJob":
         """The job of a config's grid (which the caller has checked it has) cut into tiles of
-        ``tile_shape``."""
+        ``tile_shape`` (None: :func:`grid_tile_shape`)."""
+        tile_shape = grid_tile_shape(cfg) if tile_shape is None else tile_shape
         xs, ys = axis_values(cfg.grid.x), axis_values(cfg.grid.y)
         return cls(Mapper.from_config(cfg), Plane.from_config(cfg), xs, ys, TileGrid((len(ys), len(xs)), tuple(tile_shape)),
                    cfg.scatter.draws, cfg.scatter.on or cfg.scatter.draws > 1, cfg.die.sides)
@@ -278,6 +286,17 @@ def _probe_states(job: SweepJob, todo: Sequence[int], count: int = PROBE_ROLLS) 
     return job.plane.cells(job.xs[cols], job.ys[rows])
 
 
+def default_tile_shape(shape: tuple[int, int]) -> tuple[int, int]:
+    """The tiles a (ny, nx) grid is cut into when none are asked for: LARGE_TILE_SHAPE from
+    LARGE_GRID_CELLS cells on, else DEFAULT_TILE_SHAPE."""
+    return LARGE_TILE_SHAPE if shape[0] * shape[1] >= LARGE_GRID_CELLS else DEFAULT_TILE_SHAPE
+
+
+def grid_tile_shape(cfg) -> tuple[int, int]:
+    """:func:`default_tile_shape` of ``cfg``'s grid."""
+    return default_tile_shape((cfg.grid.y.num, cfg.grid.x.num))
+
+
 # --- sweep -------------------------------------------------------------------------------
 
 
@@ -312,9 +331,11 @@ def _sweep_axis(axis) -> SweepAxis:
     return SweepAxis(axis.param, PARAM_UNITS[axis.param], axis_values(axis), float(axis.min), float(axis.max))
 
 
-def sweep_header(cfg, tile_shape=DEFAULT_TILE_SHAPE, shard=(0, 1)) -> SweepHeader:
-    """The header of a sweep file of ``cfg`` (its grid, config text, kernel layout)."""
+def sweep_header(cfg, tile_shape=None, shard=(0, 1)) -> SweepHeader:
+    """The header of a sweep file of ``cfg`` (its grid, config text, kernel layout), in tiles
+    of ``tile_shape`` (None: :func:`grid_tile_shape`)."""
     grid = cfg.grid
+    tile_shape = grid_tile_shape(cfg) if tile_shape is None else tile_shape
     return SweepHeader(
         config_toml=config_to_toml(cfg),
         sides=cfg.die.sides,
@@ -369,7 +390,7 @@ def run_sweep(
     shard: tuple[int, int] = (0, 1),
     resume: bool = False,
     progress: bool = True,
-    tile_shape: tuple[int, int] = DEFAULT_TILE_SHAPE,
+    tile_shape: tuple[int, int] | None = None,
     on_tile: Callable[[int, int], None] | None = None,
     executor: str = "local",
     scheduler: str | None = None,
@@ -396,8 +417,9 @@ def run_sweep(
         it lacks (a missing file is started afresh; a complete one is left alone).
     progress : bool
         Show a tqdm bar on stderr (only when stderr is a terminal).
-    tile_shape : tuple of int
-        (rows, cols) of a tile: the unit of work, of HDF5 chunking and of resume.
+    tile_shape : tuple of int, optional
+        (rows, cols) of a tile: the unit of work, of HDF5 chunking and of resume. None: the
+        tiles of the file resumed, else :func:`default_tile_shape` of the grid.
     on_tile : callable, optional
         Called as ``on_tile(tile_index, rolls_computed)`` after each tile is written and
         flushed (``rolls_computed`` counts this call's rolls so far).
@@ -423,9 +445,15 @@ def run_sweep(
     """
     started = time.perf_counter()
     workers = workers_or_default(workers)
+    path = Path(out_path)
+    resuming = path.exists()
+    if resuming and not resume:
+        raise exists_error(path, "use --resume or remove it")
+    if tile_shape is None and resuming:  # a file started with other tiles (an older default) goes on in its own
+        with SweepFile.open(path) as existing:
+            tile_shape = existing.header.tile_shape
     job = SweepJob.from_config(cfg, tile_shape)
     header = sweep_header(cfg, job.tiles.tile_shape, shard)
-    path = Path(out_path)
     tiles = job.tiles
     shard_tiles = tiles.shard_tiles(shard)
 
@@ -443,9 +471,6 @@ def run_sweep(
             engine=job.mapper.engine,
         )
 
-    resuming = path.exists()
-    if resuming and not resume:
-        raise exists_error(path, "use --resume or remove it")
     done = np.zeros(tiles.count, dtype=bool)
     if resuming:
         with SweepFile.open(path) as existing:

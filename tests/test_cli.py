@@ -187,6 +187,48 @@ def test_python_dash_m_runs_the_cli():
     assert "Example: dice-sweep" in result.stdout
 
 
+PROGRAM = """
+import atexit, sys
+from dice_sweep.cli import run
+
+class Teardown:
+    def __del__(self):
+        print("teardown ran", flush=True)
+
+kept = Teardown()  # a module global: deleted by the interpreter's teardown, if there is one
+atexit.register(lambda: print("atexit ran"))
+sys.argv = ["dice-sweep", *sys.argv[1:]]
+run()
+"""
+
+
+def test_the_program_ends_a_kernel_command_without_the_teardown_keeping_its_exit_code(tmp_path):
+    """``run`` (the console script and python -m) skips the interpreter's teardown after a
+    sweep, and keeps the exit code, the exit handlers, the output and a complete file."""
+    from dice_sweep.config import load_config
+    from dice_sweep.storage import read_sweep
+    from tests.helpers import assert_same_maps
+
+    grid = ["--set", "grid.x.num=8", "--set", "grid.y.num=6"]
+
+    def program(*args):
+        return subprocess.run([sys.executable, "-c", PROGRAM, *args], capture_output=True, text=True, cwd=ROOT, timeout=600)
+
+    done = program("sweep", DEMO, "-o", tmp_path / "a.h5", "--workers", "2", *grid)
+    assert done.returncode == 0, done.stderr
+    assert "48 rolls" in done.stdout and "atexit ran" in done.stdout and "teardown ran" not in done.stdout
+    small_sweep(load_config(DEMO, grid[1::2]), tmp_path / "b.h5")
+    assert read_sweep(tmp_path / "a.h5").complete
+    assert_same_maps(read_sweep(tmp_path / "a.h5"), read_sweep(tmp_path / "b.h5"))
+    before = (tmp_path / "a.h5").read_bytes()
+    refused = program("sweep", DEMO, "-o", tmp_path / "a.h5", *grid)  # a user error after the kernel's start
+    assert refused.returncode == 2 and refused.stderr.startswith("error: ") and len(refused.stderr.splitlines()) == 1
+    assert "exists" in refused.stderr and "teardown ran" not in refused.stdout
+    assert (tmp_path / "a.h5").read_bytes() == before
+    helped = program("--help")  # no kernel command: the usual end
+    assert helped.returncode == 0 and "teardown ran" in helped.stdout
+
+
 # ---- options given twice (issue 32) ---------------------------------------------------------
 
 

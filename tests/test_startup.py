@@ -1,4 +1,4 @@
-"""Tests of dice_sweep.startup: the CLI's skipping of numba's BLAS probe.
+"""Tests of dice_sweep.startup: the CLI's skipping of numba's BLAS probe and cffi support.
 
 Each runs in a fresh interpreter: the probe happens once per process.
 """
@@ -20,7 +20,7 @@ took = skip_numba_blas_probe()
 from dice_sweep.config import load_config
 from dice_sweep.roll import roll_config
 report = roll_config(load_config("configs/table1.toml", ["initial.omega0=20"]))
-linalg_during_roll = "scipy.linalg" in sys.modules
+linalg_during_roll = "scipy.linalg" in sys.modules or "cffi" in sys.modules
 from scipy.optimize import least_squares  # scipy.linalg still imports afterwards
 fit = least_squares(lambda p: p - 3.0, [0.0])
 print(json.dumps([took, linalg_during_roll, report.outcome, report.impacts, report.t_decided, float(fit.x[0])]))

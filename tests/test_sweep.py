@@ -17,13 +17,14 @@ from dice_sweep.config import parse_config
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.mapper import Mapper, initial_states
 from dice_sweep.physics import STATE_COLUMNS
-from dice_sweep.storage import NOT_COMPUTED, read_sweep
+from dice_sweep.storage import NOT_COMPUTED, SweepFile, read_sweep
 from dice_sweep.sweep import (
     SweepInterrupted,
     SweepJob,
     SweepSummary,
     TileGrid,
     axis_values,
+    default_tile_shape,
     merge_parts,
     parse_shard,
     run_sweep,
@@ -93,6 +94,13 @@ def test_tiles_cover_the_grid_once_and_shards_partition_them():
     shards = [tiles.shard_tiles((i, 4)) for i in range(4)]
     assert shards[1] == [1, 5]
     assert sorted(sum(shards, [])) == list(range(N_TILES))
+
+
+def test_large_grids_get_larger_tiles_and_every_other_grid_64_x_64():
+    assert default_tile_shape((1024, 1024)) == (128, 128)
+    assert default_tile_shape((512, 4096)) == (128, 128)
+    assert default_tile_shape((1023, 1024)) == (64, 64)
+    assert default_tile_shape((7, 10)) == (64, 64)
 
 
 def test_parse_shard_accepts_i_of_n_only():
@@ -233,6 +241,25 @@ def test_resume_without_a_file_starts_afresh(cfg, reference, tmp_path):
     summary = sweep(cfg, tmp_path / "new.h5", workers=1, resume=True)
     assert summary.complete and summary.rolls_computed == 70
     assert_same_maps(read_sweep(tmp_path / "new.h5"), reference)
+
+
+def test_resume_goes_on_in_the_tiles_the_file_was_started_with(cfg, reference, tmp_path):
+    """A file begun in other tiles than the default (an older default, or given ones) is
+    finished in its own tiles: resume without a tile shape reads them from the file."""
+    path = tmp_path / "started.h5"
+    with pytest.raises(SweepInterrupted):
+        sweep(cfg, path, workers=1, on_tile=stop_after(2))
+    assert TILE != default_tile_shape((7, 10))
+    summary = run_sweep(cfg, path, workers=2, resume=True, progress=False)
+    assert summary.complete and summary.rolls_computed == 70 - 24
+    with SweepFile.open(path) as finished:
+        assert tuple(finished.header.tile_shape) == TILE
+    assert_same_maps(read_sweep(path), reference)
+    other = tmp_path / "other.h5"
+    with pytest.raises(SweepInterrupted):
+        sweep(cfg, other, workers=1, on_tile=stop_after(1))
+    with pytest.raises(DiceSweepError, match=r"cannot resume.*tile shape \(3, 4\) vs \(2, 2\)"):
+        run_sweep(cfg, other, resume=True, tile_shape=(2, 2), progress=False)
 
 
 def test_resume_refuses_another_config_or_shard(cfg, tmp_path):
