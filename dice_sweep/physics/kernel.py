@@ -350,6 +350,44 @@ def _slide(s, fpar, tau):
 
 
 @numba.njit(cache=True)
+def _corner_down(s, fpar, corner):
+    """x (m) of ``corner`` (its arc centre) if it is on the table (within RESTING_GAP rho_max),
+    else nan: a corner that lifted off a pivot by round-off still stands there."""
+    rx, ry = corner_vector(s, fpar, corner)
+    if s[1] + ry - fpar[FP_CORNER_RADIUS] > RESTING_GAP * fpar[FP_RHO_MAX]:
+        return math.nan
+    return s[0] + rx
+
+
+@numba.njit(cache=True)
+def _held_flat(s, fpar, n, speed):
+    """A loaded die on two table corners of one side whose centre of mass is past that side
+    (gravity alone would tip it over the nearer corner) but which friction holds flat while it
+    slides: the friction force mu g at the table, below the centre of mass at height h, shifts
+    the centre of pressure by mu h forwards, to x_c + mu h sign(vx), and while that point lies
+    between the two corners both normal forces are positive (docs/physics.md, "Outcome rule").
+    Returns the corner it tips over once the slide stops, or -1 if it is not so held."""
+    if math.isinf(fpar[FP_MU]) or s[3] == 0.0:
+        return -1  # no slide: nothing holds it, the pivot tips it
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    pressure = s[0] + fpar[FP_MU] * s[1] * (1.0 if s[3] > 0.0 else -1.0)
+    for a in range(n):
+        b = (a + 1) % n
+        if not (_corner_resting(s, fpar, a, c, sn, speed) and _corner_resting(s, fpar, b, c, sn, speed)):
+            continue
+        xa = s[0] + corner_offset(fpar, a, c, sn)[0]
+        xb = s[0] + corner_offset(fpar, b, c, sn)[0]
+        lo = min(xa, xb)
+        hi = max(xa, xb)
+        if lo <= s[0] <= hi or not lo <= pressure <= hi:
+            return -1
+        near = xa if abs(xa - s[0]) < abs(xb - s[0]) else xb
+        return a if near == xa else b
+    return -1
+
+
+@numba.njit(cache=True)
 def _leaning_still(s, fpar, px):
     """True if a die on a table corner at x = ``px`` that just hit a wall (the nearer one) is at
     rest there: gravity turns it into that wall (its centre of mass between the corner and the
@@ -462,6 +500,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     closed_form = True
     chatter = 0
     propped = 0
+    table_corner = np.int64(0)  # the corner of the last pivot
+    loaded = fpar[FP_COM_X] != 0.0 or fpar[FP_COM_Y] != 0.0  # a fair die lying flat is never past its side
     last_was_flight_impact = False
     for _ in range(ipar[IP_MAX_EVENTS]):
         came_from_pivot = pivoting
@@ -521,6 +561,21 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
+        tip = _held_flat(s, fpar, n, stick_speed) if surf == SURF_TABLE and loaded else -1
+        if tip >= 0:
+            # it slides flat to a stop, then tips over the corner: the two corners used to
+            # trade pivots at one instant until the event budget (issue 33)
+            s[4] = 0.0
+            s[5] = 0.0
+            nrec = _record(rec, nrec, t, SEG_SLIDE, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
+            tau = min(abs(s[3]) / (fpar[FP_MU] * g), _time_to_wall(s, fpar, n))
+            if t + tau > t_max:
+                return _stopped(decided, STATUS_T_MAX, t_decided, t_max, nrec)
+            _slide(s, fpar, tau)
+            s[3] = 0.0
+            t += tau
+            corner = np.int64(tip)
+            u_n = 0.0
         pivoting = surf == SURF_TABLE and (u_n < stick_speed or chatter >= CHATTER_LIMIT)
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
@@ -533,11 +588,14 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             else:
                 slip = stop_corner_normal(s, fpar[FP_INERTIA], lx, ly)
             px = s[0] + rx  # the corner's (arc centre's) x
+            table_corner = corner
             chi = math.atan2(-ry, -rx)
             counts[C_PIVOTS] += 1
         if counts[C_WALL] > walls_before:
             # on a table corner (the pivot just ended, or one begun by this shared impact)
-            propped = propped + 1 if (came_from_pivot or pivoting) and _leaning_still(s, fpar, px) else 0
+            # or on the last pivot's corner, lifted off by round-off only
+            on_corner = px if came_from_pivot or pivoting else _corner_down(s, fpar, table_corner)
+            propped = propped + 1 if on_corner == on_corner and _leaning_still(s, fpar, on_corner) else 0
         energy = specific_energy(s, fpar)
         if decided < 0:
             # decided_side's own first test, made here: most impacts leave the die above it,

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from dice_sweep.geometry import corners
-from dice_sweep.physics.kernel import REC_ENERGY, REC_KIND, REC_STATE, REST_ENERGY, SEG_END, STATUS_DECIDED, STATUS_STALLED, decided_side
+from dice_sweep.physics.kernel import (REC_CORNER, REC_ENERGY, REC_KIND, REC_STATE, REC_T, REST_ENERGY, SEG_END, SEG_PIVOT,
+                                       SEG_PIVOT_ODE, SEG_SLIDE, STATUS_DECIDED, STATUS_STALLED, decided_side)
 from dice_sweep.physics.layout import C_IMPACTS, C_MULTI, ROLL_RECORDS, STATUS_EVENT_BUDGET, STATUS_NAMES, STATUS_PROPPED
 from dice_sweep.physics.params import FP_G, FP_INERTIA, FP_RHO_MAX, FP_WALL
 from tests.physics.conftest import TABLE1_RADIUS, make_params, run_batch, run_one
@@ -123,6 +124,87 @@ def test_a_loaded_die_propped_on_a_wall_ends_at_rest():
     table_gap, wall_gap = corner_gaps(fpar, 10, PROPPED_DIE["radius"], PROPPED_DIE["com_offset"], end)
     assert abs(table_gap) < 1e-9 * PROPPED_DIE["radius"] and abs(wall_gap) < 1e-9 * PROPPED_DIE["radius"]
     assert decided_side(end, fpar, 10) == -1  # propped above the barrier of the side below: no side
+
+
+# The throws of the walled fuzz (seed 2, run_walled_fuzz) that came to rest and still ended at
+# the event budget: throw index -> (make_params keywords, start of the geometric centre).
+# 1168 and 16583: a loaded die flat on two table corners of a side its centre of mass is past,
+# held there by friction while it slides; the two corners traded pivots at one instant.
+# 15733 and 15735: leaning on the right wall, the table corner lifting off by round-off
+# between wall impacts, which the propped rule did not count.
+AT_REST_AT_THE_BUDGET = {
+    1168: (dict(sides=17, radius=0.023798752755371844, model="paper", beta_n=0.08235380487629805,
+                beta_t=-0.5858449825142105, separation=0.13985468523074482, friction=0.09636815516274899,
+                com_offset=(-0.0028945383433797815, 0.0050294889224851425), speed_restitution=1.813533161598697,
+                contact_time=0.0008272910414494838),
+           [-0.03705488328773045, 0.0406805184826145, 1.550068424743869, 0.39345365852019354, 0.9608597154884733, 36.859337766818385]),
+    16583: (dict(sides=10, radius=0.021896846774243223, model="paper", beta_n=0.42237374090369906,
+                 beta_t=-0.4781176183930046, separation=0.17120122375028826, friction=0.3604018406455008,
+                 air_drag=0.11324665181264448, com_offset=(-0.001679304338889224, -0.009847982462093023),
+                 corner_radius=0.001145766181302867, inertia=0.7631564791255364),
+            [-0.017931361291763648, 0.0855011879180578, 2.838238197391715, -0.751394786971075, 0.5643973110872305, -7.909913296085271]),
+}
+LEANING_DIE = dict(sides=19, radius=0.020738129764449106, model="rigid", beta_n=0.05773005422719833,
+                   beta_t=-0.6331886584593575, separation=0.05598971017774989, friction=1.5851084222834262,
+                   friction_rule="sliding", restitution="energetic", air_drag=0.2079205053890787,
+                   com_offset=(-0.006727335632762879, -0.007247689790611697), corner_radius=0.0059106842602494655,
+                   inertia=1.2841766384660072)
+AT_REST_AT_THE_BUDGET[15733] = (LEANING_DIE, [0.0, 0.04976668385367767, 1.8735000557094015, 0.6948904371304994, 0.009456765623764074, -4.167531058119927])
+AT_REST_AT_THE_BUDGET[15735] = (LEANING_DIE, [0.0, 0.06454239170223944, -1.9751725458759959, 0.10014333604960068, 0.11931576706761238, -16.332212674474043])
+
+
+@pytest.mark.parametrize("throw", sorted(AT_REST_AT_THE_BUDGET))
+def test_the_fuzz_throws_at_rest_at_the_budget_end(throw):
+    """Each ends in a few hundred impacts (100,000, the budget, before): the two held flat
+    slide to a stop and tip onto a side (decided), the two leaning on the wall end propped at
+    rest (docs/physics.md, "Outcome rule")."""
+    kw, start = AT_REST_AT_THE_BUDGET[throw]
+    fpar, ipar = make_params(**kw)
+    out, status, _, _, rec, counts = run_one((fpar, ipar), start, max_records=ROLL_RECORDS)
+    assert counts[C_IMPACTS] < 1000
+    if kw is LEANING_DIE:
+        assert (out, STATUS_NAMES[status]) == (-1, "propped")
+        assert kinetic_energy(fpar, rec[-1, REC_STATE:REC_STATE + 6]) < REST_ENERGY * fpar[FP_G] * fpar[FP_RHO_MAX]
+    else:
+        assert STATUS_NAMES[status] == "decided" and out >= 0
+        assert SEG_SLIDE in rec[:, REC_KIND]
+
+
+def held_flat_roll(vx, friction=0.3):
+    """A 12-gon lying flat on side 0 (1e-7 apothems above rest) with its centre of mass 0.35 R to
+    the right of the centre, past corner 1 (0.26 R), sliding at vx (m/s): (params, roll)."""
+    sides, radius = 12, 0.01
+    phi = -math.pi / 2 - math.pi / sides
+    offset = 0.35 * radius  # world +x at this phi, in the body frame
+    params = make_params(sides=sides, radius=radius, model="rigid", beta_n=0.2, beta_t=0.0, friction=friction,
+                         com_offset=(offset * math.cos(phi), -offset * math.sin(phi)))
+    apothem = radius * math.cos(math.pi / sides)
+    return params, run_one(params, [0.0, apothem * (1 + 1e-7), phi, vx, 0.0, 0.0])
+
+
+def test_a_loaded_die_held_flat_by_friction_slides_to_a_stop_then_tips():
+    """Sliding left, friction mu g at the table 0.97 R below the centre of mass moves the centre
+    of pressure mu h = 0.29 R forwards, to 0.06 R: between the corners (+-0.26 R), so both stay
+    down. It slides flat for |vx| / (mu g) and then tips over corner 1 (before: the two corners
+    traded pivots at one instant until the event budget)."""
+    (fpar, _), (out, status, _, _, rec, _) = held_flat_roll(-0.2)
+    assert STATUS_NAMES[status] == "decided" and out >= 0
+    slides = np.flatnonzero(rec[:, REC_KIND] == SEG_SLIDE)
+    assert len(slides) == 1
+    start, stop = rec[slides[0]], rec[slides[0] + 1]
+    speed = abs(start[REC_STATE + 3])
+    assert 0.19 < speed <= 0.2
+    assert stop[REC_KIND] in (SEG_PIVOT, SEG_PIVOT_ODE) and stop[REC_CORNER] == 1
+    assert stop[REC_T] - start[REC_T] == pytest.approx(speed / (0.3 * fpar[FP_G]), rel=1e-12)
+    assert start[REC_STATE] - stop[REC_STATE] == pytest.approx(speed ** 2 / (2 * 0.3 * fpar[FP_G]), rel=1e-9)
+
+
+def test_a_loaded_die_sliding_the_other_way_tips_at_once():
+    """Sliding right the centre of pressure moves to 0.64 R, past the corner: nothing holds it
+    flat, it tips while sliding (no slide phase)."""
+    _, (out, status, _, _, rec, _) = held_flat_roll(0.2)
+    assert STATUS_NAMES[status] == "decided" and out >= 0
+    assert SEG_SLIDE not in rec[:, REC_KIND]
 
 
 def random_walled_die(rng):
