@@ -83,6 +83,7 @@ from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exp
     SAMPLE_RECORDS,
     SEG_END,
     SEG_FLIGHT,
+    SEG_LADDER,
     SEG_PIVOT,
     SEG_PIVOT_ODE,
     SEG_SLIDE,
@@ -95,6 +96,7 @@ from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exp
     STATUS_STALLED,
     STATUS_T_MAX,
 )
+from dice_sweep.physics.ladder import LADDER_AT_REST, LADDER_DECIDED, LADDER_OFF_WALL, LADDER_REFUSED, LADDER_TIMEOUT, ladder, ladder_at, ladder_state
 from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
 from dice_sweep.physics.scatter import scatter_impact, scatter_on
 from dice_sweep.physics.outcome import DECISION_MARGIN, barrier_height, decided_side, decision_bound, rest_height, side_below  # noqa: F401
@@ -501,6 +503,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     chatter = 0
     propped = 0
     table_corner = np.int64(0)  # the corner of the last pivot
+    sliding_walls = n_surf == 3 and not math.isinf(fpar[FP_MU])  # a ladder needs walls and sliding friction
     loaded = fpar[FP_COM_X] != 0.0 or fpar[FP_COM_Y] != 0.0  # a fair die lying flat is never past its side
     last_was_flight_impact = False
     for _ in range(ipar[IP_MAX_EVENTS]):
@@ -576,6 +579,30 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             t += tau
             corner = np.int64(tip)
             u_n = 0.0
+        ladder_end = LADDER_REFUSED
+        if surf != SURF_TABLE and sliding_walls and abs(u_n) < stick_speed:
+            # a wall contact that stays, on a table corner that stays: slide on both (physics/ladder.py)
+            on_corner = px if came_from_pivot else _corner_down(s, fpar, table_corner)
+            rx, _ = corner_vector(s, fpar, table_corner)
+            kinetic = specific_energy(s, fpar) - g * s[1]
+            if on_corner == on_corner and abs(s[4] + s[5] * rx) < stick_speed and kinetic >= REST_ENERGY * g * scale:
+                wall_side = -surface_frame(surf, fpar[FP_WALL])[0]
+                ladder_end, tau = ladder(fpar, n, table_corner, corner, wall_side, s[2], s[5], t_max - t, after)
+                if ladder_end != LADDER_REFUSED:
+                    ladder_state(fpar, table_corner, corner, wall_side, s[2], s[5], s)
+                    nrec = _record(rec, nrec, t, SEG_LADDER, s, table_corner, float(corner), wall_side, specific_energy(s, fpar), EVENT_IMPACT)
+                    for i in range(6):
+                        s[i] = after[i]
+                    t += tau
+                    if ladder_end == LADDER_TIMEOUT:
+                        return _stopped(decided, STATUS_T_MAX, t_decided, t_max, nrec)
+                    if ladder_end == LADDER_DECIDED and not keep_going:
+                        nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_LIFTOFF)
+                        return decided_side(s, fpar, n), STATUS_DECIDED, t, t, nrec
+                    if ladder_end == LADDER_OFF_WALL:  # it pivots on its table corner
+                        surf = SURF_TABLE
+                        corner = table_corner
+                        u_n = 0.0
         pivoting = surf == SURF_TABLE and (u_n < stick_speed or chatter >= CHATTER_LIMIT)
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
@@ -596,6 +623,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             # or on the last pivot's corner, lifted off by round-off only
             on_corner = px if came_from_pivot or pivoting else _corner_down(s, fpar, table_corner)
             propped = propped + 1 if on_corner == on_corner and _leaning_still(s, fpar, on_corner) else 0
+        if ladder_end == LADDER_AT_REST:  # stopped on both, friction holding it
+            propped = PROPPED_CYCLES
         energy = specific_energy(s, fpar)
         if decided < 0:
             # decided_side's own first test, made here: most impacts leave the die above it,
@@ -784,6 +813,8 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             omega = math.copysign(math.sqrt(max(w2, 0.0)), start[5] if start[5] != 0.0 else -math.cos(chi0))
             com[:] = start
             _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner)
+        elif rec[seg, REC_KIND] == SEG_LADDER:
+            ladder_at(fpar, ipar[IP_N], int(rec[seg, REC_CORNER]), int(rec[seg, REC_PX]), rec[seg, REC_CHI], start[2], start[5], tau, com)
         elif rec[seg, REC_KIND] == SEG_SLIDE:
             com[:] = start
             _slide(com, fpar, tau)

@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from dice_sweep.geometry import corners
-from dice_sweep.physics.kernel import (REC_CORNER, REC_ENERGY, REC_KIND, REC_STATE, REC_T, REST_ENERGY, SEG_END, SEG_PIVOT,
+from dice_sweep.physics.impact import corner_vector
+from dice_sweep.physics.kernel import (REC_CORNER, REC_ENERGY, REC_KIND, REC_STATE, REC_T, REST_ENERGY, RESTING_GAP, SEG_END, SEG_PIVOT,
                                        SEG_PIVOT_ODE, SEG_SLIDE, STATUS_DECIDED, STATUS_STALLED, decided_side)
 from dice_sweep.physics.layout import C_IMPACTS, C_MULTI, ROLL_RECORDS, STATUS_EVENT_BUDGET, STATUS_NAMES, STATUS_PROPPED
-from dice_sweep.physics.params import FP_G, FP_INERTIA, FP_RHO_MAX, FP_WALL
+from dice_sweep.physics.params import FP_CORNER_RADIUS, FP_G, FP_INERTIA, FP_RHO_MAX, FP_WALL
 from tests.physics.conftest import TABLE1_RADIUS, make_params, run_batch, run_one
 
 
@@ -250,13 +251,29 @@ def walled_starts(rng, kw, count):
     return states
 
 
+def end_contacts(fpar, sides, s):
+    """What a roll's end state s (centre of mass) stands on: "table+wall" (a corner on the table
+    and one on a wall: a ladder), "table" (two corners on the table: lying flat), or "other";
+    a corner touches a surface within RESTING_GAP rho_max."""
+    touch = RESTING_GAP * fpar[FP_RHO_MAX]
+    arcs = np.array([corner_vector(s, fpar, k) for k in range(sides)]) + s[:2]
+    on_table = np.sum(arcs[:, 1] - fpar[FP_CORNER_RADIUS] <= touch)
+    on_wall = np.sum(fpar[FP_WALL] - np.abs(arcs[:, 0]) - fpar[FP_CORNER_RADIUS] <= touch)
+    if on_table and on_wall:
+        return "table+wall"
+    return "table" if on_table >= 2 else "other"
+
+
 def run_walled_fuzz(total, seed, per=10):
     """Roll ``total`` random throws of random walled dice (``per`` a die); returns (status counts,
-    the throws at the event budget still moving at their end, those at rest there)."""
+    the throws at the event budget still moving at their end, those at rest there). Moving: a
+    kinetic energy above REST_ENERGY g rho_max at the last event; each entry is (keywords,
+    start, throw index, what it stands on: end_contacts, simulated time of its last 1000
+    events in s)."""
     rng = np.random.default_rng(seed)
     tally = np.zeros(len(STATUS_NAMES), int)
     moving, resting = [], []
-    for _ in range(total // per):
+    for die in range(total // per):
         kw = random_walled_die(rng)
         params = make_params(**kw)
         states = walled_starts(rng, kw, per)
@@ -267,7 +284,9 @@ def run_walled_fuzz(total, seed, per=10):
             rec = run_one(params, states[row], max_records=ROLL_RECORDS)[4]
             end = rec[-1, REC_STATE:REC_STATE + 6]
             moving_at_end = kinetic_energy(fpar, end) > REST_ENERGY * fpar[FP_G] * fpar[FP_RHO_MAX]
-            (moving if moving_at_end else resting).append((kw, states[row].tolist()))
+            entry = (kw, states[row].tolist(), die * per + int(row), end_contacts(fpar, kw["sides"], end),
+                     rec[-1, REC_T] - rec[-1000, REC_T])
+            (moving if moving_at_end else resting).append(entry)
     return dict(zip(STATUS_NAMES, tally.tolist())), moving, resting
 
 
