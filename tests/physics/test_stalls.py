@@ -13,7 +13,7 @@ import pytest
 from dice_sweep.geometry import corners
 from dice_sweep.physics.impact import corner_vector
 from dice_sweep.physics.kernel import (REC_CORNER, REC_ENERGY, REC_KIND, REC_STATE, REC_T, REST_ENERGY, RESTING_GAP, SEG_END, SEG_PIVOT,
-                                       SEG_PIVOT_ODE, SEG_SLIDE, STATUS_DECIDED, STATUS_STALLED, decided_side)
+                                       SEG_LADDER, SEG_PIVOT_ODE, SEG_SLIDE, STATUS_DECIDED, STATUS_STALLED, decided_side)
 from dice_sweep.physics.layout import C_IMPACTS, C_MULTI, ROLL_RECORDS, STATUS_EVENT_BUDGET, STATUS_NAMES, STATUS_PROPPED
 from dice_sweep.physics.params import FP_CORNER_RADIUS, FP_G, FP_INERTIA, FP_RHO_MAX, FP_WALL
 from tests.physics.conftest import TABLE1_RADIUS, make_params, run_batch, run_one
@@ -169,6 +169,32 @@ def test_the_fuzz_throws_at_rest_at_the_budget_end(throw):
     else:
         assert STATUS_NAMES[status] == "decided" and out >= 0
         assert SEG_SLIDE in rec[:, REC_KIND]
+
+
+# Throws of the same fuzz still moving at the event budget: a ladder (a table corner and a wall
+# corner sliding at once, omega ~2 rad/s) traded a pivot for a wall impact every 1e-8 s.
+SLIDING_LADDERS = {
+    757: (dict(sides=10, radius=0.012190237503180337, model="rigid", beta_n=0.060237556600103645,
+               beta_t=-0.5138844115035845, separation=0.10808288416099968, friction=0.24671876799901488,
+               friction_rule="aimed", restitution="newton", corner_radius=0.001891553761584265),
+          [0.03780695637243805, 0.10854149272822415, -3.0029572411554746, -1.4321850601994115, -0.5814919918511225, 5.3993186362982115]),
+    7267: (dict(sides=17, radius=0.022695735164816697, model="rigid", beta_n=0.17134666899991396,
+                beta_t=-0.08086539711485452, separation=0.11891107575319175, friction=0.35033355300453695,
+                friction_rule="exact", restitution="energetic", com_offset=(0.0023380106251182963, 0.0042544032033930215),
+                speed_restitution=0.8558919066541923, corner_radius=0.0028106780992250657),
+           [-0.015612158412643276, 0.04690486228074661, -2.73812263320118, -0.7023994118276105, 0.3701905656182214, -17.308716430757443]),
+}
+
+
+@pytest.mark.parametrize("throw", sorted(SLIDING_LADDERS))
+def test_the_fuzz_ladders_slide_as_one_phase(throw):
+    """Each slides on its two corners as one phase (physics/ladder.py) and ends in tens of
+    impacts: 757 decided, 7267 stopped and held by friction against the wall (propped)."""
+    kw, start = SLIDING_LADDERS[throw]
+    out, status, _, _, rec, counts = run_one(make_params(**kw), start, max_records=ROLL_RECORDS)
+    assert counts[C_IMPACTS] < 1000
+    assert SEG_LADDER in rec[:, REC_KIND]
+    assert (STATUS_NAMES[status], out >= 0) == (("decided", True) if throw == 757 else ("propped", False))
 
 
 def held_flat_roll(vx, friction=0.3):
