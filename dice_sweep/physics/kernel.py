@@ -600,6 +600,9 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
                         nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_LIFTOFF)
                         return decided_side(s, fpar, n), STATUS_DECIDED, t, t, nrec
                     if ladder_end == LADDER_OFF_WALL:  # it pivots on its table corner
+                        # clear of the wall by the gap tolerance: the pivot takes a corner at the
+                        # wall for an impact, and the two phases traded places in no time
+                        s[0] -= wall_side * tol
                         surf = SURF_TABLE
                         corner = table_corner
                         u_n = 0.0
