@@ -579,6 +579,14 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             t += tau
             corner = np.int64(tip)
             u_n = 0.0
+        if surf != SURF_TABLE and abs(u_n) < stick_speed:
+            # a slow wall contact found inside the wall by more than the gap tolerance: put it
+            # back on, or a pivot takes it for an impact at once, again and again (issue 33)
+            nx, _, d = surface_frame(surf, fpar[FP_WALL])
+            rx, _ = corner_vector(s, fpar, corner)
+            gap = d + nx * (s[0] + rx) - fpar[FP_CORNER_RADIUS]
+            if gap < -tol:
+                s[0] += nx * (tol - gap)
         ladder_end = LADDER_REFUSED
         if surf != SURF_TABLE and sliding_walls and abs(u_n) < stick_speed:
             # a wall contact that stays, on a table corner that stays: slide on both (physics/ladder.py)
