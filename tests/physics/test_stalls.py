@@ -197,6 +197,20 @@ def test_the_fuzz_ladders_slide_as_one_phase(throw):
     assert (STATUS_NAMES[status], out >= 0) == (("decided", True) if throw == 757 else ("propped", False))
 
 
+def test_a_die_at_rest_with_a_corner_inside_the_wall_by_round_off_goes_on():
+    """Fuzz throw 41931 came to rest on table corner 1 with corner 6 1e-11 R inside the right
+    wall, its centre of mass on the far side of corner 1: each pivot took corner 6 for a wall
+    impact at once, until the event budget. Put back on the wall, it falls away from it and is
+    decided (after 2.5 s of slow rocking, about 10,000 impacts)."""
+    kw = dict(sides=18, radius=0.008680978886058588, model="paper", beta_n=0.05069978462893111,
+              beta_t=-0.8595674201496281, separation=0.05219287598403997, air_drag=0.48521538297354627,
+              com_offset=(0.0010307017624251445, -0.0005834077914270085), corner_radius=0.0016327199798294278,
+              inertia=0.7433232908555789)
+    start = [0.011422521675833928, 0.10393322963480399, 1.3295014464770656, -1.473597155336411, 0.13939680087188844, -2.855851945131022]
+    out, status, _, _ = run_batch(make_params(**kw), np.array([start]))[:4]
+    assert STATUS_NAMES[status[0]] == "decided" and out[0] >= 0
+
+
 def held_flat_roll(vx, friction=0.3):
     """A 12-gon lying flat on side 0 (1e-7 apothems above rest) with its centre of mass 0.35 R to
     the right of the centre, past corner 1 (0.26 R), sliding at vx (m/s): (params, roll)."""
