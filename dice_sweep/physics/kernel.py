@@ -83,6 +83,7 @@ from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exp
     SAMPLE_RECORDS,
     SEG_END,
     SEG_FLIGHT,
+    SEG_LADDER,
     SEG_PIVOT,
     SEG_PIVOT_ODE,
     SEG_SLIDE,
@@ -95,6 +96,7 @@ from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exp
     STATUS_STALLED,
     STATUS_T_MAX,
 )
+from dice_sweep.physics.ladder import LADDER_AT_REST, LADDER_DECIDED, LADDER_OFF_WALL, LADDER_REFUSED, LADDER_TIMEOUT, ladder, ladder_at, ladder_state
 from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
 from dice_sweep.physics.scatter import scatter_impact, scatter_on
 from dice_sweep.physics.outcome import DECISION_MARGIN, barrier_height, decided_side, decision_bound, rest_height, side_below  # noqa: F401
@@ -350,6 +352,44 @@ def _slide(s, fpar, tau):
 
 
 @numba.njit(cache=True)
+def _corner_down(s, fpar, corner):
+    """x (m) of ``corner`` (its arc centre) if it is on the table (within RESTING_GAP rho_max),
+    else nan: a corner that lifted off a pivot by round-off still stands there."""
+    rx, ry = corner_vector(s, fpar, corner)
+    if s[1] + ry - fpar[FP_CORNER_RADIUS] > RESTING_GAP * fpar[FP_RHO_MAX]:
+        return math.nan
+    return s[0] + rx
+
+
+@numba.njit(cache=True)
+def _held_flat(s, fpar, n, speed):
+    """A loaded die on two table corners of one side whose centre of mass is past that side
+    (gravity alone would tip it over the nearer corner) but which friction holds flat while it
+    slides: the friction force mu g at the table, below the centre of mass at height h, shifts
+    the centre of pressure by mu h forwards, to x_c + mu h sign(vx), and while that point lies
+    between the two corners both normal forces are positive (docs/physics.md, "Outcome rule").
+    Returns the corner it tips over once the slide stops, or -1 if it is not so held."""
+    if math.isinf(fpar[FP_MU]) or s[3] == 0.0:
+        return -1  # no slide: nothing holds it, the pivot tips it
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    pressure = s[0] + fpar[FP_MU] * s[1] * (1.0 if s[3] > 0.0 else -1.0)
+    for a in range(n):
+        b = (a + 1) % n
+        if not (_corner_resting(s, fpar, a, c, sn, speed) and _corner_resting(s, fpar, b, c, sn, speed)):
+            continue
+        xa = s[0] + corner_offset(fpar, a, c, sn)[0]
+        xb = s[0] + corner_offset(fpar, b, c, sn)[0]
+        lo = min(xa, xb)
+        hi = max(xa, xb)
+        if lo <= s[0] <= hi or not lo <= pressure <= hi:
+            return -1
+        near = xa if abs(xa - s[0]) < abs(xb - s[0]) else xb
+        return a if near == xa else b
+    return -1
+
+
+@numba.njit(cache=True)
 def _leaning_still(s, fpar, px):
     """True if a die on a table corner at x = ``px`` that just hit a wall (the nearer one) is at
     rest there: gravity turns it into that wall (its centre of mass between the corner and the
@@ -462,6 +502,9 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     closed_form = True
     chatter = 0
     propped = 0
+    table_corner = np.int64(0)  # the corner of the last pivot
+    sliding_walls = n_surf == 3 and not math.isinf(fpar[FP_MU])  # a ladder needs walls and sliding friction
+    loaded = fpar[FP_COM_X] != 0.0 or fpar[FP_COM_Y] != 0.0  # a fair die lying flat is never past its side
     last_was_flight_impact = False
     for _ in range(ipar[IP_MAX_EVENTS]):
         came_from_pivot = pivoting
@@ -521,6 +564,56 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
+        tip = _held_flat(s, fpar, n, stick_speed) if surf == SURF_TABLE and loaded else -1
+        if tip >= 0:
+            # it slides flat to a stop, then tips over the corner: the two corners used to
+            # trade pivots at one instant until the event budget (issue 33)
+            s[4] = 0.0
+            s[5] = 0.0
+            nrec = _record(rec, nrec, t, SEG_SLIDE, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_IMPACT)
+            tau = min(abs(s[3]) / (fpar[FP_MU] * g), _time_to_wall(s, fpar, n))
+            if t + tau > t_max:
+                return _stopped(decided, STATUS_T_MAX, t_decided, t_max, nrec)
+            _slide(s, fpar, tau)
+            s[3] = 0.0
+            t += tau
+            corner = np.int64(tip)
+            u_n = 0.0
+        if surf != SURF_TABLE and abs(u_n) < stick_speed:
+            # a slow wall contact found inside the wall by more than the gap tolerance: put it
+            # back on, or a pivot takes it for an impact at once, again and again (issue 33)
+            nx, _, d = surface_frame(surf, fpar[FP_WALL])
+            rx, _ = corner_vector(s, fpar, corner)
+            gap = d + nx * (s[0] + rx) - fpar[FP_CORNER_RADIUS]
+            if gap < -tol:
+                s[0] += nx * (tol - gap)
+        ladder_end = LADDER_REFUSED
+        if surf != SURF_TABLE and sliding_walls and abs(u_n) < stick_speed:
+            # a wall contact that stays, on a table corner that stays: slide on both (physics/ladder.py)
+            on_corner = px if came_from_pivot else _corner_down(s, fpar, table_corner)
+            rx, _ = corner_vector(s, fpar, table_corner)
+            kinetic = specific_energy(s, fpar) - g * s[1]
+            if on_corner == on_corner and abs(s[4] + s[5] * rx) < stick_speed and kinetic >= REST_ENERGY * g * scale:
+                wall_side = -surface_frame(surf, fpar[FP_WALL])[0]
+                ladder_end, tau = ladder(fpar, n, table_corner, corner, wall_side, s[2], s[5], t_max - t, after)
+                if ladder_end != LADDER_REFUSED:
+                    ladder_state(fpar, table_corner, corner, wall_side, s[2], s[5], s)
+                    nrec = _record(rec, nrec, t, SEG_LADDER, s, table_corner, float(corner), wall_side, specific_energy(s, fpar), EVENT_IMPACT)
+                    for i in range(6):
+                        s[i] = after[i]
+                    t += tau
+                    if ladder_end == LADDER_TIMEOUT:
+                        return _stopped(decided, STATUS_T_MAX, t_decided, t_max, nrec)
+                    if ladder_end == LADDER_DECIDED and not keep_going:
+                        nrec = _record(rec, nrec, t, SEG_END, s, -1, 0.0, 0.0, specific_energy(s, fpar), EVENT_LIFTOFF)
+                        return decided_side(s, fpar, n), STATUS_DECIDED, t, t, nrec
+                    if ladder_end == LADDER_OFF_WALL:  # it pivots on its table corner
+                        # clear of the wall by the gap tolerance: the pivot takes a corner at the
+                        # wall for an impact, and the two phases traded places in no time
+                        s[0] -= wall_side * tol
+                        surf = SURF_TABLE
+                        corner = table_corner
+                        u_n = 0.0
         pivoting = surf == SURF_TABLE and (u_n < stick_speed or chatter >= CHATTER_LIMIT)
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
@@ -533,11 +626,16 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             else:
                 slip = stop_corner_normal(s, fpar[FP_INERTIA], lx, ly)
             px = s[0] + rx  # the corner's (arc centre's) x
+            table_corner = corner
             chi = math.atan2(-ry, -rx)
             counts[C_PIVOTS] += 1
         if counts[C_WALL] > walls_before:
             # on a table corner (the pivot just ended, or one begun by this shared impact)
-            propped = propped + 1 if (came_from_pivot or pivoting) and _leaning_still(s, fpar, px) else 0
+            # or on the last pivot's corner, lifted off by round-off only
+            on_corner = px if came_from_pivot or pivoting else _corner_down(s, fpar, table_corner)
+            propped = propped + 1 if on_corner == on_corner and _leaning_still(s, fpar, on_corner) else 0
+        if ladder_end == LADDER_AT_REST:  # stopped on both, friction holding it
+            propped = PROPPED_CYCLES
         energy = specific_energy(s, fpar)
         if decided < 0:
             # decided_side's own first test, made here: most impacts leave the die above it,
@@ -726,6 +824,8 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             omega = math.copysign(math.sqrt(max(w2, 0.0)), start[5] if start[5] != 0.0 else -math.cos(chi0))
             com[:] = start
             _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner)
+        elif rec[seg, REC_KIND] == SEG_LADDER:
+            ladder_at(fpar, ipar[IP_N], int(rec[seg, REC_CORNER]), int(rec[seg, REC_PX]), rec[seg, REC_CHI], start[2], start[5], tau, com)
         elif rec[seg, REC_KIND] == SEG_SLIDE:
             com[:] = start
             _slide(com, fpar, tau)

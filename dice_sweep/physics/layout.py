@@ -39,6 +39,7 @@ SEG_PIVOT = 1  # closed-form (conservative, sticking) pivot
 SEG_END = 2
 SEG_PIVOT_ODE = 3  # pivot followed by the ODE (slip, drag, or a loaded die turning back)
 SEG_SLIDE = 4  # lying flat on a side and sliding to a stop under Coulomb friction
+SEG_LADDER = 5  # sliding on a table corner (REC_CORNER) and a wall corner (REC_PX) of the wall REC_CHI (+-1)
 EVENT_START = 0
 EVENT_IMPACT = 1
 EVENT_LIFTOFF = 2
