@@ -221,6 +221,27 @@ def _touching_step(f, fp, m2, tol):
     return 0.0
 
 
+@numba.njit(inline="always")
+def _corner_motion(fpar, k, cos_phi, sin_phi, h, hv, nx, ny, omega, accel):
+    """Corner k against a surface (normal nx, ny; the centre of mass ``h`` from it, moving at
+    ``hv``): its gap f (m), the gap's rate fp (m/s) and the bound m2 (m/s^2) on the gap's
+    curvature. One piece for :func:`_scan` and :func:`search_free`, which must agree bit for bit."""
+    base = FP_CORNERS + CORNER_STRIDE * k
+    rho = fpar[base]
+    rx = rho * (cos_phi * fpar[base + 1] - sin_phi * fpar[base + 2])
+    ry = rho * (sin_phi * fpar[base + 1] + cos_phi * fpar[base + 2])
+    return h + nx * rx + ny * ry, hv + omega * (ny * rx - nx * ry), accel + rho * omega * omega
+
+
+@numba.njit(inline="always")
+def _corner_step(f, fp, m2, tol, min_step):
+    """Safe step (s) for a corner that does not touch now: touching within tol (no faster than
+    contact_speed), or clear of the surface."""
+    if f <= tol:
+        return max(_touching_step(f, fp, m2, tol), min_step)
+    return safe_step(f, fp, m2)
+
+
 @numba.njit(cache=True)
 def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, hit):
     """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now."""
@@ -245,24 +266,15 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
             continue
         h -= arc  # rounded corners: the arc centres against the surface moved by r (exact at 0)
         for k in range(n):
-            base = FP_CORNERS + CORNER_STRIDE * k
-            rho = fpar[base]
-            rx = rho * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
-            ry = rho * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
-            f = h + nx * rx + ny * ry
-            fp = hv + omega * (ny * rx - nx * ry)
-            m2 = accel + rho * omega * omega
-            if f <= tol:
-                if fp < -contact_speed:
-                    if best_corner < 0 or fp < best_rate:
-                        hit[0] = surf
-                        hit[1] = k
-                        best_corner = k
-                        best_rate = fp
-                else:
-                    step = min(step, max(_touching_step(f, fp, m2, tol), min_step))
+            f, fp, m2 = _corner_motion(fpar, k, cphi, sphi, h, hv, nx, ny, omega, accel)
+            if f <= tol and fp < -contact_speed:
+                if best_corner < 0 or fp < best_rate:
+                    hit[0] = surf
+                    hit[1] = k
+                    best_corner = k
+                    best_rate = fp
             else:
-                step = min(step, safe_step(f, fp, m2))
+                step = min(step, _corner_step(f, fp, m2, tol, min_step))
     if best_corner >= 0:
         return -1.0
     return step
@@ -341,24 +353,15 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                 for j in range(count):
                     k = first + j
                     k -= n if k >= n else 0
-                    base = FP_CORNERS + CORNER_STRIDE * k
-                    rho = fpar[base]
-                    rx = rho * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
-                    ry = rho * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
-                    f = h + nx * rx + ny * ry
-                    fp = hv + omega * (ny * rx - nx * ry)
-                    m2 = accel + rho * omega * omega
-                    if f <= tol:
-                        if fp < -contact_speed:
-                            # ties go to the lowest index, in whatever order the corners come
-                            if best_corner < 0 or fp < best_rate or (fp == best_rate and surf == hit_surf and k < best_corner):
-                                hit_surf = surf
-                                best_corner = k
-                                best_rate = fp
-                        else:
-                            step = min(step, max(_touching_step(f, fp, m2, tol), min_step))
+                    f, fp, m2 = _corner_motion(fpar, k, cphi, sphi, h, hv, nx, ny, omega, accel)
+                    if f <= tol and fp < -contact_speed:
+                        # ties go to the lowest index, in whatever order the corners come
+                        if best_corner < 0 or fp < best_rate or (fp == best_rate and surf == hit_surf and k < best_corner):
+                            hit_surf = surf
+                            best_corner = k
+                            best_rate = fp
                     else:
-                        step = min(step, safe_step(f, fp, m2))
+                        step = min(step, _corner_step(f, fp, m2, tol, min_step))
                 if count == n:
                     break
                 # The corners not visited are a run of the cycle without the lowest: no lower
