@@ -92,11 +92,7 @@ def part_fit(cfg, fit, red, segments, keep, rng, sigmas, bootstrap):
         return None
     names = list(fit.free)
     values, red_part, part = part_step(red, segments, keep, names, fit.params, cfg)
-    at_bound = {}
-    for name in names:
-        low, high = registry.param(name).bounds_of(cfg)
-        at_bound[name] = bool(min(values[name] - low, high - values[name]) <= shooting.AT_BOUND * (high - low))
-    stepped = replace(fit, params=values, states=fit.states[keep], at_bound=at_bound)
+    stepped = replace(fit, params=values, states=fit.states[keep], at_bound=shooting.at_bounds(cfg, values, names))
     _, described = parameter_intervals(stepped, red_part, part, cfg, rng, sigmas, bootstrap)
     return {"segments": int(part.count), "tracks": int(part.tracks), "params": described}
 

@@ -490,12 +490,17 @@ def fit_spec(cfg, spec, segments, start=None, states=None, fixed=False, max_iter
             break
         values, states, cost, more, converged = _fit(model, values, fresh, free, max_iterations)
         iterations += more
-    at_bound = {}
-    for name in free:
+    return FitResult(spec, values, states, free, cost, iterations, converged, at_bounds(cfg, values, free))
+
+
+def at_bounds(cfg, values, names):
+    """name -> whether its value lies within AT_BOUND of its range from a fit bound."""
+    out = {}
+    for name in names:
         low, high = registry.param(name).bounds_of(cfg)
         span = high - low
-        at_bound[name] = bool(values[name] <= low + AT_BOUND * span or values[name] >= high - AT_BOUND * span)
-    return FitResult(spec, values, states, free, cost, iterations, converged, at_bound)
+        out[name] = bool(values[name] <= low + AT_BOUND * span or values[name] >= high - AT_BOUND * span)
+    return out
 
 
 def linearise(cfg, fit, segments, free=None):
