@@ -122,7 +122,7 @@ def install_locator():
         pass
 
 
-# A cold compile on the project's 2-core machine: 31-32 s for a first roll or sweep that compiles
+# A cold compile on the project's 2-core machine: about 36 s for a first roll or sweep that compiles
 # when it is quiet (docs/cold_start.md, "compile forced"); slower or loaded machines more.
 COLD_COMPILE_SECONDS = (20, 40)
 
