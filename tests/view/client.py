@@ -10,6 +10,8 @@ from tests.helpers import CONFIGS
 
 DEMO = CONFIGS / "demo.toml"
 SMALL = ["grid.x.num=16", "grid.y.num=12"]
+# the scattered law at 8 draws a cell: a probability file of the demo
+SCATTERED = ["scatter.corner=0.1", "scatter.flat=0.1", "scatter.corner_floor=0.05", "scatter.draws=8", "scatter.seed=5"]
 ZOOM = {"xmin": 20.0, "xmax": 35.0, "ymin": 0.05, "ymax": 0.12, "nx": 10, "ny": 7}
 
 

@@ -19,7 +19,7 @@ from dice_sweep.storage import read_sweep
 from dice_sweep.sweep import axis_values
 from dice_sweep.view.app import MAX_PIXELS, QueryError, ViewApp, draw_shares, map_stats
 from tests.helpers import small_sweep
-from tests.view.client import DEMO, SMALL, ZOOM, get, get_json, zoom_config
+from tests.view.client import DEMO, SCATTERED, SMALL, ZOOM, get, get_json, zoom_config
 
 
 # --- the API against the kernel ---------------------------------------------------------------
@@ -182,9 +182,6 @@ def test_a_missing_file_or_a_file_of_another_kind_is_refused(tmp_path):
 
 
 # --- a probability file (draws > 1 of the scattered law) -------------------------------------
-
-SCATTERED = ["scatter.corner=0.1", "scatter.flat=0.1", "scatter.corner_floor=0.05", "scatter.draws=8", "scatter.seed=5"]
-
 
 @pytest.fixture(scope="module")
 def probability_app(tmp_path_factory):

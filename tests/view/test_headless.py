@@ -13,7 +13,11 @@ from dice_sweep.config import parse_config
 from dice_sweep.roll import roll_config
 from dice_sweep.storage import read_sweep
 from dice_sweep.view.headless import BROWSER_ARGS, CHROMIUM, launch, open_page, wait_until
-from tests.view.client import get_json
+from dice_sweep.config import load_config
+from dice_sweep.plotting.maps import shaded_sides
+from tests.helpers import small_sweep
+from tests.view.client import DEMO, SCATTERED, SMALL, get_json
+from tests.view.conftest import serving
 
 
 class CountingPage:
@@ -176,4 +180,66 @@ def test_page_of_a_sampled_file_rolls_the_cell_it_shows(browser, server, sweep_f
         assert (rolled["x"], rolled["y"]) == (sweep.x.values[cell["i"]], sweep.y.values[cell["j"]])
         assert rolled["outcome"] == cell["code"] == sweep.outcome[cell["j"], cell["i"]]
     assert "16 x 12 cells" in page.inner_text("#stats-source")
+    page.close()
+
+
+def shaded_as_drawn(sides, outcome, p_max):
+    """RGB (ny, nx, 3), 0-255, of a probability map given as the API answers it (the most
+    likely outcome and its p, rows up): the PNG's picture (plotting.shaded_sides)."""
+    outcome, p_max = np.asarray(outcome), np.asarray(p_max, dtype=float)
+    probability = np.zeros((sides + 1, *outcome.shape))
+    rows, cols = np.indices(outcome.shape)
+    probability[np.where(outcome < 0, sides, outcome), rows, cols] = p_max
+    return np.round(255 * shaded_sides(probability, sides)).astype(int)
+
+
+@pytest.fixture(scope="module")
+def probability_server(tmp_path_factory):
+    path = tmp_path_factory.mktemp("view_probability") / "p.h5"
+    small_sweep(load_config(DEMO, [*SMALL, *SCATTERED]), path)
+    with serving(path) as httpd:
+        yield httpd, read_sweep(path)
+
+
+def test_page_of_a_probability_file_draws_and_zooms_shaded_by_p(browser, probability_server):
+    """A probability file (8 draws a cell of the scattered law): the page draws each cell's most
+    likely side faded by its p as the PNG does (plotting.shaded_sides), says so when hovered,
+    and a zoom draws the kernel's shares of the zoom, one cell per screen pixel."""
+    server, sweep = probability_server
+    problems = []
+
+    def listen(page):
+        page.on("console", lambda message: message.type == "error" and problems.append(message.text))
+        page.on("pageerror", lambda error: problems.append(str(error)))
+
+    page, screen = open_page(browser, server, listen=listen)
+    ny, nx = sweep.outcome.shape
+    best = np.argmax(sweep.probability, axis=0)
+    outcome, p_max = np.where(best == 4, -1, best), sweep.probability.max(axis=0)
+    assert np.mean(p_max < 0.9) > 0.2  # draws disagree in many cells: the shading is a real check
+    image = plot_pixels(page)
+    height, width = image.shape[:2]
+    centres = image[((ny - 0.5 - np.arange(ny)) * height / ny).astype(int)][:, ((np.arange(nx) + 0.5) * width / nx).astype(int)]
+    expected = shaded_as_drawn(4, outcome, p_max)
+    assert np.abs(centres - expected).max() <= 3  # rounding of p to float32 and of the colours
+    assert np.abs(centres - shaded_as_drawn(4, outcome, np.ones_like(p_max))).max() > 60  # not drawn at p = 1
+
+    page.mouse.move(screen["left"] + 0.5 * screen["width"], screen["top"] + 0.5 * screen["height"])
+    assert "of 8 draws, entropy" in page.inner_text("#readout") and "most likely" in page.inner_text("#readout")
+    assert "8 draws per cell" in page.inner_text("#entropy")
+
+    left, top = screen["left"], screen["top"]
+    page.mouse.move(left + 120, top + 100)
+    page.mouse.down()
+    page.mouse.move(left + 220, top + 180, steps=6)
+    page.mouse.up()
+    wait_until(page, "window.diceView.state.requests.length === 1 && window.diceView.state.status === 'idle'", timeout=180)
+    asked = page.evaluate("window.diceView.state.requests[0]")
+    status, answer = get_json(server, "/api/map", **asked)
+    assert status == 200 and answer["draws"] == 8
+    drawn = plot_pixels(page)[::-1]  # image rows run down, map rows up; one cell per screen pixel
+    expected = shaded_as_drawn(4, answer["outcome"], answer["p_max"])
+    assert drawn.shape == expected.shape
+    assert np.mean(np.abs(drawn - expected).max(axis=-1) <= 3) > 0.99
+    assert problems == []
     page.close()
