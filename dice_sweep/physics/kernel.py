@@ -390,6 +390,29 @@ def _held_flat(s, fpar, n, speed):
 
 
 @numba.njit(cache=True)
+def _flat_on_wall(s, fpar, n, surf, corner, speed):
+    """True if the die, clear of the table, has a side on wall ``surf``: ``corner`` (which has
+    just hit it) and a neighbour within RESTING_GAP rho_max of the wall, the neighbour moving in
+    or out no faster than ``speed``. Such a side rocked on the wall corner by corner, every
+    rebound smaller (a Zeno run in the air, no gravity to end it in a pivot), until the contact
+    search stalled (issue 33: 14 of 10^5 walled fuzz throws, all triangles)."""
+    touch = RESTING_GAP * fpar[FP_RHO_MAX]
+    arc = fpar[FP_CORNER_RADIUS]
+    nx, _, d = surface_frame(surf, fpar[FP_WALL])
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    for k in range(n):
+        _, ry = corner_offset(fpar, k, c, sn)
+        if s[1] + ry - arc <= touch:
+            return False
+    for k in ((corner + 1) % n, (corner + n - 1) % n):
+        rx, ry = corner_offset(fpar, k, c, sn)
+        if abs(d + nx * (s[0] + rx) - arc) <= touch and abs(nx * (s[3] - s[5] * ry)) <= speed:
+            return True
+    return False
+
+
+@numba.njit(cache=True)
 def _sliding_jams(s, fpar, lx, ly, ry, slip):
     """True if a corner on the table (contact point (lx, ly) and arc centre height ry from the
     centre of mass) cannot slide at ``slip`` (m/s): Painleve's case. Friction against the slip
@@ -632,6 +655,11 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
                         surf = SURF_TABLE
                         corner = table_corner
                         u_n = 0.0
+        if surf != SURF_TABLE and ladder_end == LADDER_REFUSED and abs(u_n) < stick_speed and _flat_on_wall(s, fpar, n, surf, corner, stick_speed):
+            # a side rocking on a wall in the air: the limit of the Zeno run, the side at rest on
+            # the wall (its normal speed and the spin gone); it falls along the wall from there
+            s[3] = 0.0
+            s[5] = 0.0
         pivoting = surf == SURF_TABLE and (u_n < stick_speed or chatter >= CHATTER_LIMIT)
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
