@@ -336,7 +336,7 @@ def run_walled_fuzz(total, seed, per=10):
 def test_dice_between_walls_end_in_a_sample():
     statuses, moving, resting = run_walled_fuzz(600, seed=1)
     assert sum(statuses.values()) == 600
-    assert resting == []  # at the event budget at rest: a propped die not recognised
+    assert resting == [] and moving == []  # none at the event budget
     assert statuses["stalled"] == 0
     # 533 decided and 67 propped on a wall in this kernel; before issue 33 the propped ones
     # ended at the event budget
@@ -345,19 +345,19 @@ def test_dice_between_walls_end_in_a_sample():
 
 @pytest.mark.slow
 def test_dice_between_walls_end_in_the_fuzz():
-    """None at rest at the event budget. The whole 10^5 (docs/dev/fuzz_issue33.md): 263 at the
-    budget before issue 33's rest rules (241 moving, the ones looked at ladders; 22 at rest); at d584551
-    90,146 decided, 9,829 propped, 14 stalled, 11 at the budget, all moving (chatter of the
-    kernel: 1000 events in 3e-6 to 3e-5 s; a corner on table and wall at once, or a loaded die
-    of high friction trading two-contact impacts and pivots). What is left moving is printed with what it stands on (end_contacts)."""
+    """Every roll ends: none at the event budget, none stalled. The whole 10^5
+    (docs/dev/fuzz_issue33.md): 263 at the budget before issue 33's rest rules; at 5c7e566
+    90,147 decided, 9,828 propped, 11 at the budget (the kernel's chatter: a corner held in the
+    table-wall corner, a pivot that could not slide) and 14 stalled (a side rocking on a wall in
+    the air); with the hinge, the jammed pivot's stick and the rest on a wall none (the 25 are
+    the fast tests above). Anything at the budget is printed with what it stands on
+    (end_contacts): a roll the physics keeps moving would have to be named here."""
     statuses, moving, resting = run_walled_fuzz(100_000, seed=2)
     print(statuses, f"{len(moving)} still moving at the event budget")
     for _, _, throw, contacts, last_1000 in moving:
         print(f"throw {throw}: on {contacts}, its last 1000 events in {last_1000:.3g} s")
-    assert resting == []
-    # known, left open: a die lying flat against a wall in the air without spin can stall the
-    # search (a corner creeping in slower than contact_speed with rho omega^2 > 0): 1 in 7000
-    assert statuses["stalled"] <= 1e-3 * sum(statuses.values())
+    assert resting == [] and moving == []
+    assert statuses["stalled"] == 0
 
 
 # --- the 25 throws of the walled fuzz (seed 2) that did not end at 5c7e566 ----------------------
