@@ -448,7 +448,10 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
         # bound |a| over the next h_ode: speed can grow by at most g h_ode meanwhile
         speed = math.sqrt(out[3] * out[3] + out[4] * out[4]) + g * h_ode  # not hypot: see outcome.rest_height
         drag_accel = c * speed * speed
-        step = _scan(out, fpar, n, n_surf, g + drag_accel, drag_accel, tol, min_step, contact_speed, hit)
+        # towards a wall drag pulls at c |v| |vx| at most, and |vx| only falls (gravity is along
+        # y): a die at rest on a wall, falling along it, stepped by sqrt(tol / (c v^2)) and stalled
+        wall_accel = c * speed * abs(out[3])
+        step = _scan(out, fpar, n, n_surf, g + drag_accel, wall_accel, tol, min_step, contact_speed, hit)
         if step < 0.0:
             return tau
         h = min(step, h_ode)

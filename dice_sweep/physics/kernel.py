@@ -390,6 +390,47 @@ def _held_flat(s, fpar, n, speed):
 
 
 @numba.njit(cache=True)
+def _flat_on_wall(s, fpar, n, surf, corner, speed):
+    """True if the die, clear of the table, has a side on wall ``surf``: ``corner`` (which has
+    just hit it) and a neighbour within RESTING_GAP rho_max of the wall, the neighbour moving in
+    or out no faster than ``speed``. Such a side rocked on the wall corner by corner, every
+    rebound smaller (a Zeno run in the air, no gravity to end it in a pivot), until the contact
+    search stalled (issue 33: 14 of 10^5 walled fuzz throws, all triangles)."""
+    touch = RESTING_GAP * fpar[FP_RHO_MAX]
+    arc = fpar[FP_CORNER_RADIUS]
+    nx, _, d = surface_frame(surf, fpar[FP_WALL])
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    for k in range(n):
+        _, ry = corner_offset(fpar, k, c, sn)
+        if s[1] + ry - arc <= touch:
+            return False
+    for k in ((corner + 1) % n, (corner + n - 1) % n):
+        rx, ry = corner_offset(fpar, k, c, sn)
+        if abs(d + nx * (s[0] + rx) - arc) <= touch and abs(nx * (s[3] - s[5] * ry)) <= speed:
+            return True
+    return False
+
+
+@numba.njit(cache=True)
+def _sliding_jams(s, fpar, lx, ly, ry, slip):
+    """True if a corner on the table (contact point (lx, ly) and arc centre height ry from the
+    centre of mass) cannot slide at ``slip`` (m/s): Painleve's case. Friction against the slip
+    turns the die so that a normal force pushing it would press the corner in faster
+    (k^2 + lx^2 + sign(slip) mu lx ly < 0), while gravity, drag and spin press it in
+    (g - D_y + omega^2 ry > 0): sliding would need the table to pull, and a released corner
+    falls back in at once. The pivot lifted off at its first instant, the corner hit again at
+    ~1e-7 m/s, and so on until the event budget (issue 33). The slip then stops in an impact
+    without collision (Genot and Brogliato 1999), whose impulse, the plastic one that brings the
+    contact point to rest, pushes (p_n > 0) and lies inside the friction cone there."""
+    sign = 1.0 if slip > 0.0 else -1.0
+    if fpar[FP_INERTIA] + lx * lx + sign * fpar[FP_MU] * lx * ly >= 0.0:
+        return False
+    drag_y = -fpar[FP_DRAG] * math.sqrt(s[3] * s[3] + s[4] * s[4]) * s[4]
+    return fpar[FP_G] - drag_y + s[5] * s[5] * ry > 0.0
+
+
+@numba.njit(cache=True)
 def _leaning_still(s, fpar, px):
     """True if a die on a table corner at x = ``px`` that just hit a wall (the nearer one) is at
     rest there: gravity turns it into that wall (its centre of mass between the corner and the
@@ -614,6 +655,11 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
                         surf = SURF_TABLE
                         corner = table_corner
                         u_n = 0.0
+        if surf != SURF_TABLE and ladder_end == LADDER_REFUSED and abs(u_n) < stick_speed and _flat_on_wall(s, fpar, n, surf, corner, stick_speed):
+            # a side rocking on a wall in the air: the limit of the Zeno run, the side at rest on
+            # the wall (its normal speed and the spin gone); it falls along the wall from there
+            s[3] = 0.0
+            s[5] = 0.0
         pivoting = surf == SURF_TABLE and (u_n < stick_speed or chatter >= CHATTER_LIMIT)
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
@@ -625,6 +671,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
                 slip = 0.0
             else:
                 slip = stop_corner_normal(s, fpar[FP_INERTIA], lx, ly)
+                if slip != 0.0 and _sliding_jams(s, fpar, lx, ly, ry, slip):
+                    # an impact without collision stops the slip (docs/physics.md, "Outcome rule")
+                    stick_corner(s, fpar[FP_INERTIA], lx, ly)
+                    slip = 0.0
             px = s[0] + rx  # the corner's (arc centre's) x
             table_corner = corner
             chi = math.atan2(-ry, -rx)

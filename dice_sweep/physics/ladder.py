@@ -14,6 +14,18 @@ zero only when omega is: then it stays at rest unless gravity turns it on agains
 when another corner reaches the table or the wall, or when the side is decided
 (docs/physics.md, "Outcome rule"). Without this phase the event kernel traded a pivot on the
 table corner for a wall impact every 1e-8 s of simulated time, until its event budget.
+
+A hinge is the case a = b of a sharp corner: one corner lodged in the corner of table and wall.
+Neither contact slips (the corner cannot move into either surface, and moving out of one is
+moving along the other, which the other's friction or normal force stops), so the die turns
+about the corner like a pendulum, (k^2 + rho^2) omega' = r_x (g - D_y) + r_y D_x, and the
+reaction R = a - (0, -g) - D at the corner is whatever keeps it there. It holds while R lies
+in the sum of the two friction cones, capped at the half-plane facing out of the corner
+(friction up to 1: a larger mu would let the two frictions wedge the corner in with a reaction
+that pulls, which the rigid model cannot decide). It ends, besides the common ends, when R
+leaves that cone on the table's side (the corner slides away from the wall: a pivot on the
+table) or on the wall's side (it would slide up the wall: flight). Without it a corner in the
+table-wall corner traded a sliding pivot into the wall for a wall impact until the budget.
 """
 
 import math
@@ -57,8 +69,46 @@ def ladder_state(fpar, a, b, wall, phi, omega, s):
 
 
 @numba.njit(cache=True)
+def is_hinge(fpar, a, b):
+    """True if the phase on table corner a and wall corner b is a hinge: one sharp corner."""
+    return a == b and fpar[FP_CORNER_RADIUS] == 0.0
+
+
+@numba.njit(cache=True)
+def hinge_reaction(fpar, rx, ry, omega, dx, dy):
+    """(angular acceleration rad/s^2, Rx, Ry m/s^2) of a die turning at omega about its corner
+    held at rest, r = (rx, ry) from the centre of mass, drag acceleration (dx, dy): the reaction
+    R (per unit mass) is what the two contacts must push at the corner."""
+    alpha = (rx * (fpar[FP_G] - dy) + ry * dx) / (fpar[FP_INERTIA] + rx * rx + ry * ry)
+    w2 = omega * omega
+    return alpha, alpha * ry + w2 * rx - dx, -alpha * rx + w2 * ry + fpar[FP_G] - dy
+
+
+@numba.njit(cache=True)
+def hinge_margins(fpar, wall, rx_reaction, ry_reaction):
+    """The reaction's margins (m/s^2, >= 0 inside) to the edges of the cone the two contacts can
+    push in, wall ``wall`` (+1 right, -1 left): (wall side, table side). The cone spans the
+    table's and the wall's friction cones, at most the half-plane out of the corner."""
+    half = min(math.atan(fpar[FP_MU]), 0.25 * math.pi)
+    c = math.cos(half)
+    sn = math.sin(half)
+    toward = wall * rx_reaction  # the reaction's component towards the wall (the wall pushes away)
+    return -toward * sn + ry_reaction * c, -toward * c + ry_reaction * sn
+
+
+@numba.njit(cache=True)
+def _hinge(fpar, wall, rx, ry, omega, dx, dy):
+    """:func:`_forces` of a hinge: (angular acceleration, wall-side margin, table-side margin)."""
+    alpha, reaction_x, reaction_y = hinge_reaction(fpar, rx, ry, omega, dx, dy)
+    on_wall, on_table = hinge_margins(fpar, wall, reaction_x, reaction_y)
+    return alpha, on_wall, on_table
+
+
+@numba.njit(cache=True)
 def _forces(fpar, a, b, wall, phi, omega, sa, sb):
-    """(angular acceleration rad/s^2, N_a, N_b in m/s^2) with the slips' signs sa, sb."""
+    """(angular acceleration rad/s^2, N_a, N_b in m/s^2) with the slips' signs sa, sb; for a
+    hinge (:func:`is_hinge`) N_a and N_b are the reaction's margins to the wall's and the
+    table's edge of the cone (>= 0 inside; :func:`_hinge`)."""
     c = math.cos(phi)
     sn = math.sin(phi)
     arc = fpar[FP_CORNER_RADIUS]
@@ -71,6 +121,8 @@ def _forces(fpar, a, b, wall, phi, omega, sa, sb):
     speed = math.sqrt(vx * vx + vy * vy)
     dx = -fpar[FP_DRAG] * speed * vx
     dy = -fpar[FP_DRAG] * speed * vy
+    if is_hinge(fpar, a, b):
+        return _hinge(fpar, wall, rax, ray, omega, dx, dy)
     # torque per unit normal force of each contact, at its contact point (arc centre less r n)
     ca = rax + mu * sa * (ray - arc)
     cb = wall * rby - mu * sb * (rbx + wall * arc)
@@ -122,7 +174,9 @@ def _margin(fpar, n, a, b, wall, phi, omega, sa, sb, s):
     _, na, nb = _forces(fpar, a, b, wall, phi, omega, sa, sb)
     ua, ub = _slips(fpar, a, b, wall, phi, omega)
     speed = math.sqrt(g * scale)
-    m = min(na / g, nb / g, sa * ua / speed, sb * ub / speed)
+    m = min(na / g, nb / g)
+    if not is_hinge(fpar, a, b):  # a hinge does not slip
+        m = min(m, sa * ua / speed, sb * ub / speed)
     ladder_state(fpar, a, b, wall, phi, omega, s)
     c = math.cos(phi)
     sn = math.sin(phi)
@@ -164,7 +218,8 @@ def ladder(fpar, n, a, b, wall, phi0, omega0, t_left, s):
     unit = math.sqrt(fpar[FP_RHO_MAX] / g)
     h = LADDER_STEP * unit
     ua, ub = _slips(fpar, a, b, wall, phi0, omega0)
-    if abs(ua) < LADDER_SLIP * math.sqrt(g * fpar[FP_RHO_MAX]) or abs(ub) < LADDER_SLIP * math.sqrt(g * fpar[FP_RHO_MAX]):
+    slow = LADDER_SLIP * math.sqrt(g * fpar[FP_RHO_MAX])
+    if not is_hinge(fpar, a, b) and (abs(ua) < slow or abs(ub) < slow):
         return LADDER_REFUSED, 0.0
     sa, sb = _signs(fpar, a, b, wall, phi0, omega0)
     if _margin(fpar, n, a, b, wall, phi0, omega0, sa, sb, s) < 0.0:

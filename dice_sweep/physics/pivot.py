@@ -182,7 +182,7 @@ def wall_gap(fpar, chi, com_angle, px, rho, j, half_width, surf):
 def first_wall_contact(fpar, n, corner, px, chi0, chi1, hit):
     """First chi on the path chi0 -> chi1 where a corner reaches a wall, or NaN.
 
-    Only called when a wall is within reach of the die (|px| + 2 rho_max >= L). The gaps are
+    Only called when a wall is within reach of the die (|px| + rho + rho_max >= L). The gaps are
     smooth with at most a few extrema on a short path, so sampling then bisection is enough.
     """
     half_width = fpar[FP_WALL]
@@ -306,7 +306,9 @@ def pivot_next(fpar, n, corner, px, chi0, omega0, out, hit):
                         kind = PIVOT_LIFTOFF
                         chi_end = chi_c
     half_width = fpar[FP_WALL]
-    if not math.isinf(half_width) and abs(px) + 2.0 * rho >= half_width and chi_end != chi0:
+    # another corner is at most rho + rho_max from the pivot: 2 rho for a fair die; a loaded
+    # die's far corner (2 rho missed it) went 1e-2 R into a wall (issue 33, fuzz throw 70227)
+    if not math.isinf(half_width) and abs(px) + rho + fpar[FP_RHO_MAX] >= half_width and chi_end != chi0:
         chi_wall = first_wall_contact(fpar, n, corner, px, chi0, chi_end, hit)
         if not math.isnan(chi_wall):
             kind = PIVOT_WALL
