@@ -742,14 +742,21 @@ def _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_
 # The integrals are spectral: values at Chebyshev points to values of the integral, one matrix.
 # Panel lengths and points: the last two Chebyshev coefficients of 1/D (poles where D = 0, about
 # 0.5 rad off the real axis at mu = 0.5) stay below 1e-15 at 24 points over 0.4 rad and at 10
-# points over 0.02 rad (a numpy check of fig08's square at mu = 0.5, both slip directions).
+# points over 0.02 rad and at 6 over 1e-4 rad (a numpy check of fig08's square at mu = 0.5 and 1,
+# both slip directions). Most slides of the rigid law are the slip a pivot starts with, which
+# stops within 1e-4 rad.
 SLIDE_NODES = 24  # Chebyshev points of a panel
 SLIDE_PANEL = 0.4  # rad: longest panel
 SLIDE_SHORT_NODES = 10  # Chebyshev points of a short first panel (a slip about to stop)
 SLIDE_SHORT_PANEL = 0.02  # rad: longest short panel
+SLIDE_TINY_NODES = 6  # Chebyshev points of a tiny first panel
+SLIDE_TINY_PANEL = 1e-4  # rad: longest tiny panel
 SLIDE_STOP_REACH = 2.0  # a first panel spans this many times the estimated turn to a slip stop
-SLIDE_TAIL = 1e-15  # last two Chebyshev coefficients of 1/D and 1/omega, relative: larger halves the panel
-SLIDE_HALVINGS = 6  # a panel halved this often without converging leaves the slide to the ODE
+# Last two Chebyshev coefficients of 1/D and 1/omega, relative, on a panel of SLIDE_PANEL rad;
+# on a shorter panel the bound grows as its length falls (the error of the integrals is per
+# radian, and a tiny panel's values are flat to round-off): larger halves the panel.
+SLIDE_TAIL = 1e-15
+SLIDE_HALVINGS = 4  # a panel halved this often without converging (a turning point near) leaves the slide to the ODE
 
 
 def _chebyshev_tables(m):
@@ -771,6 +778,7 @@ def _chebyshev_tables(m):
 
 SLIDE_TABLES = _chebyshev_tables(SLIDE_NODES)
 SLIDE_SHORT_TABLES = _chebyshev_tables(SLIDE_SHORT_NODES)
+SLIDE_TINY_TABLES = _chebyshev_tables(SLIDE_TINY_NODES)
 
 
 @numba.njit(cache=True)
@@ -852,9 +860,9 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
     """Move a drag-free slide on a sharp corner along its exact path to its next event.
 
     The slide is followed in chi, panel by panel (SLIDE_NODES Chebyshev points over at most
-    SLIDE_PANEL rad; a first panel around a slip estimated to stop soon takes the short
-    table), each panel halved until the last Chebyshev coefficients of 1/D and 1/omega fall
-    below SLIDE_TAIL, with W = omega^2, the time, the slip velocity and the slid distance
+    SLIDE_PANEL rad; a first panel around a slip estimated to stop soon takes the short or
+    the tiny table), each panel halved until the last Chebyshev coefficients of 1/D and 1/omega fall
+    below SLIDE_TAIL (scaled by the panel's length), with W = omega^2, the time, the slip velocity and the slid distance
     from the closed forms of the comment above. The first Chebyshev point where the slip has
     stopped or the normal force is negative brackets the event, which is located by the
     Illinois method on :func:`_slide_margin` of the interpolants and then moved on until
@@ -905,13 +913,20 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
     while True:
         if direction * (chi_end - lo) <= 0.0:
             return -1.0
-        short = panel <= SLIDE_SHORT_PANEL
-        xs, q, rows, weights = SLIDE_SHORT_TABLES if short else SLIDE_TABLES
-        m = SLIDE_SHORT_NODES if short else SLIDE_NODES
+        if panel <= SLIDE_TINY_PANEL:
+            xs, q, rows, weights = SLIDE_TINY_TABLES
+            m = SLIDE_TINY_NODES
+        elif panel <= SLIDE_SHORT_PANEL:
+            xs, q, rows, weights = SLIDE_SHORT_TABLES
+            m = SLIDE_SHORT_NODES
+        else:
+            xs, q, rows, weights = SLIDE_TABLES
+            m = SLIDE_NODES
         hi = chi_end if direction * (chi_end - lo) <= panel else lo + direction * panel
         half = 0.5 * (hi - lo)
         if half == 0.0:
             return -1.0
+        tail_tol = SLIDE_TAIL * max(1.0, 0.5 * SLIDE_PANEL / abs(half))
         ok = True
         for j in range(m):
             chi = hi if j == m - 1 else lo + half * (xs[j] + 1.0)
@@ -927,7 +942,7 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
             cos_n[j] = cs
             inv_d[j] = 1.0 / d
             lever[j] = lev
-        if ok and _panel_tail(rows, inv_d, m) > SLIDE_TAIL:
+        if ok and _panel_tail(rows, inv_d, m) > tail_tol:
             ok = False
         if ok:
             _panel_integral(q, inv_d, m, half, phi)
@@ -944,7 +959,7 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
                     break
                 w2[j] = w
                 inv_w[j] = 1.0 / math.sqrt(w)
-            if ok and _panel_tail(rows, inv_w, m) > SLIDE_TAIL:
+            if ok and _panel_tail(rows, inv_w, m) > tail_tol:
                 ok = False
         if not ok:
             halvings += 1
