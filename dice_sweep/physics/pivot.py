@@ -868,7 +868,7 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
     Illinois method on :func:`_slide_margin` of the interpolants and then moved on until
     :func:`_slide_event` holds. Without either, the slide reaches the flat angle. Returns the
     time (s) with y moved to the event, or -1 with y untouched when this does not apply:
-    omega = 0, rounded corners, a wall within reach, D <= 0 or omega = 0 on the way (a
+    omega = 0, rounded corners, a wall within reach where the slide starts or ends, D <= 0 or omega = 0 on the way (a
     Painleve jam, a turning point), a panel that does not converge, an energy below g rho_max
     at the event (the side may be decided on the way: the ODE tests that), or more time than
     ``t_room``. ``work`` is scratch, float64[10, SLIDE_NODES].
@@ -1034,6 +1034,10 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
     sc = math.sin(chi)
     cc = math.cos(chi)
     omega, xp, up = _slide_state(sc, cc, w_end, t_end, direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+    # the corner slides one way (the slip keeps its sign up to the event), so the die stays
+    # between where it started and where it ends: out of a wall's reach at both, never near one
+    if not math.isinf(half_width) and abs(px + xp) + 2.0 * fpar[FP_RHO_MAX] >= half_width:
+        return -1.0
     vx = up - omega * rho * sc
     vy = omega * rho * cc
     if 0.5 * (vx * vx + vy * vy + inertia * w_end) + g * rho * sc < g * fpar[FP_RHO_MAX] * (1.0 + 1e-9):

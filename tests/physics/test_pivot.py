@@ -13,6 +13,7 @@ from dice_sweep.physics.pivot import (
     PIVOT_FLAT,
     PIVOT_LIFTOFF,
     PIVOT_TIMEOUT,
+    PIVOT_WALL,
     carlson_rf,
     liftoff_factor,
     omega_squared,
@@ -368,6 +369,29 @@ def test_drag_free_slides_with_transitions_match_the_reference():
             assert abs(contact_rates(mode, [out[0], out[1], out[3], out[4]], mu)[1]) < 1e-12 * G
     assert ends == {"flat", "lift"}
 
+
+
+def test_drag_free_slide_towards_a_wall_meets_it_as_the_ode_does():
+    """A pentagon's corner sliding at 0.5 m/s towards a wall it is out of reach of at the
+    start: the closed form must not slide past the wall. Same event (a wall), corner, time and
+    state as the Runge-Kutta steps (drag 1e-300) to 1e-11 of their scales. (A closed form that
+    checked the wall's reach only at the start turned a pentagon of
+    tests/physics/test_exact_impact.py's whole rolls into an event-budget loop.)"""
+    start = (0.009990919970697534, 1.698134923860578, -13.359627846184317, 0.5266553590131222)
+    got = []
+    for drag in (0.0, 1e-300):
+        fpar, _ = make_params(sides=5, model="rigid", friction=0.3, separation=0.08, friction_rule="sliding", air_drag=drag)
+        out = np.zeros(5)
+        hit = np.zeros(2, np.int64)
+        got.append((pivot_ode(fpar, 5, 4, *start, 10.0, True, out, hit), tuple(hit), out.copy()))
+    (kind_cf, hit_cf, cf), (kind_ode, hit_ode, ode) = got
+    assert kind_cf == kind_ode == PIVOT_WALL and hit_cf == hit_ode
+    t_unit = math.sqrt(TABLE1_RADIUS / G)
+    assert abs(cf[2] - ode[2]) < 1e-11 * t_unit
+    assert abs(cf[0] - ode[0]) < 1e-11
+    assert abs(cf[1] - ode[1]) < 1e-11 / t_unit
+    assert abs(cf[3] - ode[3]) < 1e-11 * TABLE1_RADIUS
+    assert abs(cf[4] - ode[4]) < 1e-11 * TABLE1_RADIUS / t_unit
 
 # --- pivots with friction, in whole rolls (issue 4) ----------------------------------------------
 
