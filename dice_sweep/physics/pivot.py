@@ -1136,19 +1136,14 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
         if t_left - t <= 0.0:
             kind = PIVOT_TIMEOUT
             break
-        if mode == MODE_STICK and c == 0.0 and not closed_form_last:
-            tau = _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_left - t, trial)
+        if c == 0.0 and not closed_form_last:
+            if mode == MODE_STICK:
+                tau = _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_left - t, trial)
+            else:
+                tau = _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_left, t_left - t, work)
             if tau >= 0.0:
                 # the next pass finds the event at y; should round-off hide it there, take
                 # an ODE step rather than the same closed form again
-                t += tau
-                event = -1
-                fresh = False
-                closed_form_last = True
-                continue
-        elif mode != MODE_STICK and c == 0.0 and not closed_form_last:
-            tau = _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_left, t_left - t, work)
-            if tau >= 0.0:
                 t += tau
                 event = -1
                 fresh = False
