@@ -6,8 +6,9 @@ On the same initial conditions (the fig08 grid of the Table I die):
 3. pymunk (Chipmunk2D) with the same die, Newton restitution and Coulomb friction, stepped at
    1e-4 s and stopped by the same energy rule (rolls per CPU second, one core);
 4. the CLI sweep of configs/fig08.toml at 1 and 2 workers (at --sweep-num, and at --long-num
-   where the fixed start of a command is a few per cent of it), and `dice-sweep roll` with an empty
-   numba cache: see 5.
+   where the fixed start of a command is a few per cent of it), the rigid law of 1 and 3 swept by
+   the CLI on 2 workers at --sweep-num against pymunk's rolls/s per core (issue 33; ``--rigid-cli``
+   runs only this), and `dice-sweep roll` with an empty numba cache: see 5.
 Prints a Markdown table; ``--write`` puts it into docs/performance.md. Public API only.
 5. the cold start (issue 16): a new user's first commands and a CI job's, each a fresh process
    with an empty NUMBA_CACHE_DIR, on the engine the tool chooses and with the compile forced,
@@ -15,6 +16,7 @@ Prints a Markdown table; ``--write`` puts it into docs/performance.md. Public AP
 
     python scripts/bench.py [--num 128] [--sweep-num 1024] [--long-num 4096] [--pymunk-rolls 200] [--skip-cold] [--write]
     python scripts/bench.py --cold [--write]
+    python scripts/bench.py --rigid-cli [--sweep-num 1024] [--pymunk-rolls 200]   # issue 33's rows, printed only
 
 Every timed row gives min / median / max of its runs (the kernel rows in CPU time of the
 process, the commands in wall time), and the page ends with the machine's load average
@@ -79,9 +81,35 @@ def pymunk_rate(cfg, states, rolls, seed=0, repeat=3):
     return chosen.shape[0] / best
 
 
-def sweep_command(config, num, out, workers):
-    return CLI + ["sweep", str(config), "-o", str(out), "--workers", str(workers), "--quiet",
-                  "--set", f"grid.x.num={num}", "--set", f"grid.y.num={num}"]
+def sweep_command(config, num, out, workers, overrides=()):
+    sets = [arg for override in (f"grid.x.num={num}", f"grid.y.num={num}", *overrides) for arg in ("--set", override)]
+    return CLI + ["sweep", str(config), "-o", str(out), "--workers", str(workers), "--quiet", *sets]
+
+
+RIGID_LAW = ("contact.model=rigid", "contact.friction=0.5", "contact.beta_tangential=0")
+RIGID_CLI_WORKERS = 2
+
+
+def rigid_cli_rows(num, repeat, munk, tmp):
+    """Issue 33's like-for-like comparison: the rigid law (what pymunk's die does) swept by the
+    CLI on fig08's grid at num x num with RIGID_CLI_WORKERS workers, in rolls per second per
+    core (the rolls over the median wall time of the whole command over the workers), against
+    ``munk``, pymunk's rolls per CPU second of this run. Table rows, then a sentence."""
+    fig08 = ROOT / "configs" / "fig08.toml"
+    times = []
+    for attempt in range(repeat):
+        out = tmp / f"rigid{num}-{attempt}.h5"
+        times.append(timed(sweep_command(fig08, num, out, RIGID_CLI_WORKERS, RIGID_LAW)))
+        out.unlink()
+    walls = spread(times)
+    per_core = num * num / (walls[1] * RIGID_CLI_WORKERS)
+    sets = " ".join(f"--set {override}" for override in RIGID_LAW)
+    rows = [f"| `dice-sweep sweep configs/fig08.toml {sets}` at {num} x {num}, {RIGID_CLI_WORKERS} workers "
+            f"({repeat} runs) | {seconds(walls)} |"]
+    sentence = (f"The rigid law through the CLI, like for like with pymunk's die (e 0.2, mu 0.5): {per_core:,.0f} rolls/s "
+                f"per core ({num * num} rolls over the median wall time over {RIGID_CLI_WORKERS} workers) against pymunk's "
+                f"{munk:,.1f} in this run: **{per_core / munk:,.0f} x**.")
+    return rows, sentence
 
 
 def cli_sweep_times(config, num, repeat, tmp):
@@ -171,7 +199,19 @@ def main():
     parser.add_argument("--write", action="store_true", help="write docs/performance.md and docs/cold_start.md")
     parser.add_argument("--cold", action="store_true", help="only the cold-start part (docs/cold_start.md)")
     parser.add_argument("--skip-cold", action="store_true", help="leave out the cold-start part (minutes of compiling)")
+    parser.add_argument("--rigid-cli", action="store_true",
+                        help="only pymunk and the rigid law through the CLI (issue 33's rows), printed")
     args = parser.parse_args()
+    if args.rigid_cli:
+        rigid = load_config(ROOT / "configs" / "fig08.toml", [f"grid.x.num={args.num}", f"grid.y.num={args.num}", *RIGID_LAW])
+        munk = pymunk_rate(rigid, initial_states(rigid, axis_values(rigid.grid.x), axis_values(rigid.grid.y)), args.pymunk_rolls)
+        load_before = os.getloadavg()
+        with tempfile.TemporaryDirectory() as tmp:
+            rows, sentence = rigid_cli_rows(args.sweep_num, 3, munk, Path(tmp))
+        print("\n".join(["| command | wall time (s), min / median / max |", "|---|---|", *rows, "", sentence, "",
+                         "Load average (1, 5, 15 min) before the CLI runs: {:.2f} {:.2f} {:.2f}; after: {:.2f} {:.2f} {:.2f}; "
+                         "{} cores.".format(*load_before, *os.getloadavg(), os.cpu_count())]))
+        return 0
     if not args.skip_cold:
         with tempfile.TemporaryDirectory() as tmp:
             publish(cold_start_markdown(Path(tmp)), "cold_start.md", "cold_start_intro.md", args.write)
@@ -181,8 +221,7 @@ def main():
     fig08 = ROOT / "configs" / "fig08.toml"
     cfg = load_config(fig08, [f"grid.x.num={args.num}", f"grid.y.num={args.num}"])
     states = initial_states(cfg, axis_values(cfg.grid.x), axis_values(cfg.grid.y))
-    rigid = load_config(fig08, [f"grid.x.num={args.num}", f"grid.y.num={args.num}", "contact.model=rigid",
-                                "contact.beta_tangential=0.0", "contact.friction=0.5"])
+    rigid = load_config(fig08, [f"grid.x.num={args.num}", f"grid.y.num={args.num}", *RIGID_LAW])
     rows = []
     paper_rate, paper_impacts = kernel_rate(cfg, states)
     rows.append(("event kernel, paper law", paper_rate, paper_impacts))
@@ -204,6 +243,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         sweep_times = cli_sweep_times(fig08, args.sweep_num, 3, tmp)
+        rigid_rows, rigid_sentence = rigid_cli_rows(args.sweep_num, 3, munk, tmp)
         long_times = cli_sweep_times(fig08, args.long_num, args.long_repeat, tmp) if args.long_num else None
         # the fixed start: the same command on a 2 x 2 grid (4 rolls)
         start_cost = min(timed(sweep_command(fig08, 2, tmp / f"tiny{i}.h5", 1)) for i in range(3))
@@ -221,6 +261,7 @@ def main():
     lines += ["| command | wall time (s), min / median / max |", "|---|---|", *sweep_rows(args.sweep_num, 3, sweep_times)]
     if long_times:
         lines += sweep_rows(args.long_num, args.long_repeat, long_times)
+    lines += [*rigid_rows, "", rigid_sentence]
     lines += ["", "Cold starts (an empty numba cache): [cold_start.md](cold_start.md).", "",
               "Amdahl split of the CLI sweeps:", "",
               "| part | 1 worker (s) | 2 workers (s) | speed-up |", "|---|---|---|---|",

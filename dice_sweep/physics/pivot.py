@@ -734,6 +734,323 @@ def _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_
     return tau
 
 
+# ---- sliding without drag on a sharp corner: the exact path, panel by panel in chi -----------
+# With s the slip direction, k = rho^2 / I, L = cos chi + s mu sin chi and D = 1 + k cos chi L,
+# W = omega^2 obeys the linear equation dW/dchi = 2 omega' = (k s mu - D') W / D - 2 rho g L / (I D),
+# so W(chi) = (D_a / D) exp(k s mu Phi) (W_a - 2 rho g / (I D_a) int_a^chi L exp(-k s mu Phi)),
+# Phi = int_a^chi dchi / D; t = int dchi / |omega|. The contact force is the only horizontal
+# force and N = vy' + g, so the centre of mass moves as vx = vx_a - s mu (vy - vy_a + g t):
+# the slip velocity and the slid distance follow from (chi, omega, t) with no integral.
+# The integrals are spectral: values at Chebyshev points to values of the integral, one matrix.
+# Panel lengths and points: the last two Chebyshev coefficients of 1/D (poles where D = 0, about
+# 0.5 rad off the real axis at mu = 0.5) stay below 1e-15 at 24 points over 0.4 rad and at 10
+# points over 0.02 rad and at 6 over 1e-4 rad (a numpy check of fig08's square at mu = 0.5 and 1,
+# both slip directions). Most slides of the rigid law are the slip a pivot starts with, which
+# stops within 1e-4 rad.
+SLIDE_NODES = 24  # Chebyshev points of a panel
+SLIDE_PANEL = 0.4  # rad: longest panel
+SLIDE_SHORT_NODES = 10  # Chebyshev points of a short first panel (a slip about to stop)
+SLIDE_SHORT_PANEL = 0.02  # rad: longest short panel
+SLIDE_TINY_NODES = 6  # Chebyshev points of a tiny first panel
+SLIDE_TINY_PANEL = 1e-4  # rad: longest tiny panel
+SLIDE_STOP_REACH = 2.0  # a first panel spans this many times the estimated turn to a slip stop
+# Last two Chebyshev coefficients of 1/D and 1/omega, relative, on a panel of SLIDE_PANEL rad;
+# on a shorter panel the bound grows as its length falls (the error of the integrals is per
+# radian, and a tiny panel's values are flat to round-off): larger halves the panel.
+SLIDE_TAIL = 1e-15
+SLIDE_HALVINGS = 4  # a panel halved this often without converging (a turning point near) leaves the slide to the ODE
+
+
+def _chebyshev_tables(m):
+    """Chebyshev-Lobatto points on [-1, 1] (increasing), the matrix taking values there to the
+    values of the interpolant's integral from -1, the rows giving its last two Chebyshev
+    coefficients, and the barycentric weights."""
+    x = -np.cos(np.pi * np.arange(m) / (m - 1))
+    cheb = np.polynomial.chebyshev
+    to_coef = np.linalg.solve(cheb.chebvander(x, m - 1), np.eye(m))
+    integral = np.empty((m, m))
+    for k in range(m):
+        unit = np.zeros(m)
+        unit[k] = 1.0
+        integral[:, k] = cheb.chebval(x, cheb.chebint(unit, lbnd=-1.0))
+    weights = (-1.0) ** np.arange(m)
+    weights[[0, -1]] *= 0.5
+    return x, integral @ to_coef, np.ascontiguousarray(to_coef[-2:]), weights
+
+
+SLIDE_TABLES = _chebyshev_tables(SLIDE_NODES)
+SLIDE_SHORT_TABLES = _chebyshev_tables(SLIDE_SHORT_NODES)
+SLIDE_TINY_TABLES = _chebyshev_tables(SLIDE_TINY_NODES)
+
+
+@numba.njit(cache=True)
+def _panel_integral(q, values, m, scale, out):
+    """out = scale times the integral from the panel's start of the interpolant of the first m
+    ``values`` at the Chebyshev points, at the same points (q: the table's matrix)."""
+    out[0] = 0.0
+    for i in range(1, m):
+        acc = 0.0
+        for j in range(m):
+            acc += q[i, j] * values[j]
+        out[i] = scale * acc
+
+
+@numba.njit(cache=True)
+def _panel_tail(rows, values, m):
+    """Size of the last two Chebyshev coefficients of the first m ``values`` relative to their
+    largest (rows: the table's)."""
+    top = 0.0
+    c1 = 0.0
+    c2 = 0.0
+    for j in range(m):
+        top = max(top, abs(values[j]))
+        c1 += rows[0, j] * values[j]
+        c2 += rows[1, j] * values[j]
+    return (abs(c1) + abs(c2)) / top
+
+
+@numba.njit(cache=True)
+def _panel_values(x, xs, weights, a, b, m):
+    """The interpolants of the first m of ``a`` and ``b`` (at the Chebyshev points xs) at x in
+    [-1, 1], by the barycentric formula."""
+    num_a = 0.0
+    num_b = 0.0
+    den = 0.0
+    for j in range(m):
+        d = x - xs[j]
+        if d == 0.0:
+            return a[j], b[j]
+        q = weights[j] / d
+        num_a += q * a[j]
+        num_b += q * b[j]
+        den += q
+    return num_a / den, num_b / den
+
+
+@numba.njit(cache=True)
+def _slide_state(sc, cc, w2, t, direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a):
+    """(omega, xp, up) of a slide at the angle of sine sc and cosine cc, omega^2 = w2, t
+    seconds in (the comment above); x_a, y_a: the centre of mass at the start from the corner."""
+    omega = direction * math.sqrt(w2)
+    height = rho * sc
+    up = vx_a - s_mu * (omega * rho * cc - vy_a + g * t) + omega * height
+    xp = x_a + vx_a * t - s_mu * (height - y_a - vy_a * t + 0.5 * g * t * t) - rho * cc
+    return omega, xp, up
+
+
+@numba.njit(cache=True)
+def _slide_margin(sc, w2, up, mode, rho, g):
+    """> 0 where a slide's event holds: the slip stopped (mode up < 0) or the normal force
+    is negative (rho omega^2 sin chi > g, D > 0); the larger of the two."""
+    return max(-mode * up, rho * w2 * sc - g)
+
+
+@numba.njit(cache=True)
+def _slide_event(chi, omega, up, mode, rho, inertia, g, mu):
+    """Lift-off (3) or slip stop (4) of a drag-free slide, else 0: the test
+    :func:`_contact_event` makes (the same function)."""
+    _, _, _, _, normal, _ = _contact_rates(chi, omega, up, mode, rho, 0.0, inertia, g, mu, 0.0)
+    if normal < 0.0:
+        return 3
+    if mode * up < 0.0:
+        return 4
+    return 0
+
+
+@numba.njit(cache=True)
+def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_left, t_room, work):
+    """Move a drag-free slide on a sharp corner along its exact path to its next event.
+
+    The slide is followed in chi, panel by panel (SLIDE_NODES Chebyshev points over at most
+    SLIDE_PANEL rad; a first panel around a slip estimated to stop soon takes the short or
+    the tiny table), each panel halved until the last Chebyshev coefficients of 1/D and 1/omega fall
+    below SLIDE_TAIL (scaled by the panel's length), with W = omega^2, the time, the slip velocity and the slid distance
+    from the closed forms of the comment above. The first Chebyshev point where the slip has
+    stopped or the normal force is negative brackets the event, which is located by the
+    Illinois method on :func:`_slide_margin` of the interpolants and then moved on until
+    :func:`_slide_event` holds. Without either, the slide reaches the flat angle. Returns the
+    time (s) with y moved to the event, or -1 with y untouched when this does not apply:
+    omega = 0, rounded corners, a wall within reach where the slide starts or ends, D <= 0 or omega = 0 on the way (a
+    Painleve jam, a turning point), a panel that does not converge, an energy below g rho_max
+    at the event (the side may be decided on the way: the ODE tests that), or more time than
+    ``t_room``. ``work`` is scratch, float64[10, SLIDE_NODES].
+    """
+    omega_a = y[1]
+    if omega_a == 0.0 or fpar[FP_CORNER_RADIUS] != 0.0:
+        return -1.0
+    half_width = fpar[FP_WALL]
+    if not math.isinf(half_width) and abs(px + y[2]) + 2.0 * fpar[FP_RHO_MAX] >= half_width:
+        return -1.0
+    direction = 1.0 if omega_a > 0.0 else -1.0
+    chi_end = chi_left if omega_a > 0.0 else chi_right
+    k = rho * rho / inertia
+    s_mu = mode * mu
+    chi_a = y[0]
+    sc = math.sin(chi_a)
+    cc = math.cos(chi_a)
+    vx_a = y[3] - omega_a * rho * sc
+    vy_a = omega_a * rho * cc
+    x_a = y[2] + rho * cc
+    y_a = rho * sc
+    # a slip being braked: the first panel reaches a little past where it would stop
+    _, _, _, slip_rate, _, _ = _contact_rates(chi_a, omega_a, y[3], mode, rho, 0.0, inertia, g, mu, 0.0)
+    panel = SLIDE_PANEL
+    if mode * y[3] > 0.0 and mode * slip_rate < 0.0:
+        panel = min(panel, SLIDE_STOP_REACH * abs(omega_a * y[3] / slip_rate))
+    chi_n = work[0]
+    sin_n = work[1]
+    cos_n = work[2]
+    inv_d = work[3]
+    phi = work[4]
+    lever = work[5]
+    integral = work[6]
+    w2 = work[7]
+    inv_w = work[8]
+    t_n = work[9]
+    lo = chi_a  # start of the current panel, W and the time there
+    w_lo = omega_a * omega_a
+    t_lo = 0.0
+    halvings = 0
+    found = -1  # the Chebyshev point where the event first holds
+    while True:
+        if direction * (chi_end - lo) <= 0.0:
+            return -1.0
+        if panel <= SLIDE_TINY_PANEL:
+            xs, q, rows, weights = SLIDE_TINY_TABLES
+            m = SLIDE_TINY_NODES
+        elif panel <= SLIDE_SHORT_PANEL:
+            xs, q, rows, weights = SLIDE_SHORT_TABLES
+            m = SLIDE_SHORT_NODES
+        else:
+            xs, q, rows, weights = SLIDE_TABLES
+            m = SLIDE_NODES
+        hi = chi_end if direction * (chi_end - lo) <= panel else lo + direction * panel
+        half = 0.5 * (hi - lo)
+        if half == 0.0:
+            return -1.0
+        tail_tol = SLIDE_TAIL * max(1.0, 0.5 * SLIDE_PANEL / abs(half))
+        ok = True
+        for j in range(m):
+            chi = hi if j == m - 1 else lo + half * (xs[j] + 1.0)
+            sn = math.sin(chi)
+            cs = math.cos(chi)
+            lev = cs + s_mu * sn
+            d = 1.0 + k * cs * lev
+            if not d > 0.0:
+                ok = False
+                break
+            chi_n[j] = chi
+            sin_n[j] = sn
+            cos_n[j] = cs
+            inv_d[j] = 1.0 / d
+            lever[j] = lev
+        if ok and _panel_tail(rows, inv_d, m) > tail_tol:
+            ok = False
+        if ok:
+            _panel_integral(q, inv_d, m, half, phi)
+            for j in range(m):
+                phi[j] = math.exp(k * s_mu * phi[j])  # now exp(k s mu Phi)
+                lever[j] /= phi[j]
+            _panel_integral(q, lever, m, half, integral)
+            d_lo = 1.0 / inv_d[0]
+            pull = 2.0 * rho * g / (inertia * d_lo)
+            for j in range(m):
+                w = d_lo * inv_d[j] * phi[j] * (w_lo - pull * integral[j])
+                if not w > 0.0:
+                    ok = False
+                    break
+                w2[j] = w
+                inv_w[j] = 1.0 / math.sqrt(w)
+            if ok and _panel_tail(rows, inv_w, m) > tail_tol:
+                ok = False
+        if not ok:
+            halvings += 1
+            if halvings > SLIDE_HALVINGS:
+                return -1.0
+            panel *= 0.5
+            continue
+        _panel_integral(q, inv_w, m, abs(half), t_n)
+        for j in range(m):
+            t_n[j] += t_lo
+        for j in range(1, m):
+            _, _, up = _slide_state(sin_n[j], cos_n[j], w2[j], t_n[j], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+            if _slide_margin(sin_n[j], w2[j], up, mode, rho, g) > 0.0:
+                found = j
+                break
+        if found >= 0 or hi == chi_end:
+            break
+        lo = hi
+        w_lo = w2[m - 1]
+        t_lo = t_n[m - 1]
+        panel = SLIDE_PANEL
+    if found < 0:
+        chi = chi_end
+        w_end = w2[m - 1]
+        t_end = t_n[m - 1]
+    else:
+        # Illinois in x in [-1, 1] on the interpolants' margin, then on until the test holds
+        x_lo = xs[found - 1]
+        x_hi = 1.0 if found == m - 1 else xs[found]
+        _, _, up = _slide_state(sin_n[found - 1], cos_n[found - 1], w2[found - 1], t_n[found - 1], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+        f_lo = min(_slide_margin(sin_n[found - 1], w2[found - 1], up, mode, rho, g), -1e-300)
+        _, _, up = _slide_state(sin_n[found], cos_n[found], w2[found], t_n[found], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+        f_hi = _slide_margin(sin_n[found], w2[found], up, mode, rho, g)
+        # the bracket is shrunk to the ODE's EVENT_TIME_TOL (as dx = dt |omega| / |half|):
+        # below it the margin is round-off (the slip is a difference of m/s-sized terms)
+        x_tol = EVENT_TIME_TOL * math.sqrt(rho / g) * math.sqrt(w2[found]) / abs(half)
+        side = 0
+        for _ in range(100):
+            if x_hi - x_lo <= x_tol or f_hi == f_lo:
+                break
+            x = (x_lo * f_hi - x_hi * f_lo) / (f_hi - f_lo)
+            if not x_lo < x < x_hi:
+                x = 0.5 * (x_lo + x_hi)
+            chi = lo + half * (x + 1.0)
+            sn = math.sin(chi)
+            w, t = _panel_values(x, xs, weights, w2, t_n, m)
+            _, _, up = _slide_state(sn, math.cos(chi), w, t, direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+            f = _slide_margin(sn, w, up, mode, rho, g)
+            if f > 0.0:
+                x_hi = x
+                f_hi = f
+                if side == 1:
+                    f_lo *= 0.5
+                side = 1
+            else:
+                x_lo = x
+                f_lo = f
+                if side == -1:
+                    f_hi *= 0.5
+                side = -1
+        nudge = 4e-16
+        for _ in range(60):
+            chi = hi if x_hi >= 1.0 else lo + half * (x_hi + 1.0)
+            w_end, t_end = _panel_values(x_hi, xs, weights, w2, t_n, m)
+            omega, _, up = _slide_state(math.sin(chi), math.cos(chi), w_end, t_end, direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+            if _slide_event(chi, omega, up, mode, rho, inertia, g, mu) != 0 or x_hi >= 1.0:
+                break
+            x_hi = min(x_hi + nudge, 1.0)
+            nudge *= 2.0
+    if t_end > t_room:
+        return -1.0
+    sc = math.sin(chi)
+    cc = math.cos(chi)
+    omega, xp, up = _slide_state(sc, cc, w_end, t_end, direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+    # the corner slides one way (the slip keeps its sign up to the event), so the die stays
+    # between where it started and where it ends: out of a wall's reach at both, never near one
+    if not math.isinf(half_width) and abs(px + xp) + 2.0 * fpar[FP_RHO_MAX] >= half_width:
+        return -1.0
+    vx = up - omega * rho * sc
+    vy = omega * rho * cc
+    if 0.5 * (vx * vx + vy * vy + inertia * w_end) + g * rho * sc < g * fpar[FP_RHO_MAX] * (1.0 + 1e-9):
+        return -1.0  # it may be decided on the way (energy falls while sliding): the ODE's tests
+    y[0] = chi
+    y[1] = omega
+    y[2] = xp
+    y[3] = up
+    return t_end
+
+
 @numba.njit(cache=True)
 def _event_holds(found, stop_at_decision):
     return found != 0 and (found != 5 or stop_at_decision)
@@ -751,7 +1068,8 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     out (out then holds the state at exactly t_left: sample_records relies on that).
 
     A slip below SLIP_TOL sqrt(g rho) at the start counts as sticking. Sticking phases
-    without drag take the exact path (:func:`_stick_closed_form`) where it applies; the rest
+    without drag take the exact path (:func:`_stick_closed_form`) where it applies, and so do
+    sliding phases without drag on a sharp corner (:func:`_slide_closed_form`); the rest
     is integrated by adaptive Dormand-Prince 5(4) steps with a local error below ODE_TOL of
     the die's scales. After each accepted step the event predicate (:func:`_contact_event`) is tested at its end
     and, when it holds there, on the step's dense output at EVENT_SAMPLES points, then the
@@ -783,6 +1101,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     tmp = np.zeros(4)
     k = np.zeros((7, 4))
     state = np.zeros(6)
+    work = np.empty((10, SLIDE_NODES))
     if abs(slip0) <= SLIP_TOL * math.sqrt(g * rho):
         y[3] = 0.0
     mode = MODE_STICK if y[3] == 0.0 else (1 if y[3] > 0.0 else -1)
@@ -807,6 +1126,7 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
             else:
                 mode = 1 if friction < 0.0 else -1  # slide against the force sticking needs
             fresh = False
+            closed_form_last = False  # a new mode: its own closed form may follow one of the other
         elif event == 5 and not stop_at_decision:
             event = 0
         elif event != 0:
@@ -818,8 +1138,11 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
         if t_left - t <= 0.0:
             kind = PIVOT_TIMEOUT
             break
-        if mode == MODE_STICK and c == 0.0 and not closed_form_last:
-            tau = _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_left - t, trial)
+        if c == 0.0 and not closed_form_last:
+            if mode == MODE_STICK:
+                tau = _stick_closed_form(fpar, px, y, rho, inertia, g, mu, chi_right, chi_left, t_left - t, trial)
+            else:
+                tau = _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_left, t_left - t, work)
             if tau >= 0.0:
                 # the next pass finds the event at y; should round-off hide it there, take
                 # an ODE step rather than the same closed form again
