@@ -246,13 +246,14 @@ def replay_impacts(pre, hits, fpar, ipar, post, u_n):
 
 
 @numba.njit
-def replay_outcome(post, hits, fpar, n, stick_speed):
-    """The checks ``_roll_event`` makes after every impact, as it makes them."""
+def replay_outcome(post, hits, u_n, fpar, n, stick_speed):
+    """The checks ``_roll_event`` makes after every impact, as it makes them (the replayed
+    impacts are single contacts: the corner that hit is the contact)."""
     acc = 0.0
     decide_bound = outcome.decision_bound(fpar)
     for i in range(post.shape[0]):
-        if hits[i, 0] == flight.SURF_TABLE:
-            acc += kernel._flat_side(post[i], fpar, n, stick_speed)
+        if hits[i, 0] == flight.SURF_TABLE and not abs(u_n[i]) > stick_speed:
+            acc += kernel._flat_side(post[i], fpar, n, stick_speed, hits[i, 1])
         energy = impact.specific_energy(post[i], fpar)
         acc += energy
         if energy < decide_bound:
@@ -336,7 +337,7 @@ def profile_case(config, num, repeat):
         "batch": (roll_batch, (fpar, ipar, states, out_o, out_s, out_c, out_t)),
         "contact search": (replay_search, (flights, fpar, ipar, t_left, tol, min_step, contact_speed, pre, hits)),
         "impact law": (replay_impacts, (imp_pre, imp_hits, fpar, ipar, post, u_n)),
-        "outcome checks": (replay_outcome, (post, imp_hits, fpar, n, stick_speed)),
+        "outcome checks": (replay_outcome, (post, imp_hits, u_n, fpar, n, stick_speed)),
         "pivots (closed form)": (replay_pivots, (pivots, fpar, n, kinds, piv_pre, piv_hits)),
         "fixed overhead": (roll_batch, (fpar, ipar, rest, out_o, out_s, out_c, out_t)),
     }

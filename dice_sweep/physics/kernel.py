@@ -275,16 +275,27 @@ def _corner_resting(s, fpar, corner, c, sn, speed):
 
 
 @numba.njit(cache=True)
-def _flat_side(s, fpar, n, speed):
+def _flat_side(s, fpar, n, speed, near):
     """The side the die lies flat on (both its corners on the table, neither moving in or out
-    faster than ``speed``), or -1."""
+    faster than ``speed``), or -1.
+
+    ``near``: a corner touching the table (within the gap tolerance), or -1 (unknown). No three
+    corners of a regular polygon (arc centres too, loaded or not) lie within a tolerance of one
+    line: the nearest corner off a side is 2 R sin(pi/n) sin(2 pi/n) from its line (2.5e-3 R at
+    n = 127) against RESTING_GAP 1e-9. So a side lying flat has ``near`` as one of its two
+    corners, and only it and its two neighbours need counting: the same answer (n = 20 counted
+    20 corners on every table impact, issue 33).
+    """
     c = math.cos(s[2])
     sn = math.sin(s[2])
     # Both corners of the side must be resting; after a bounce only the corner that hit is,
     # if any. Counting the resting corners first skips side_below (a float modulo) on almost
     # every call, and changes no answer.
     passing = 0
-    for corner in range(n):
+    first = 0 if near < 0 else near - 1 + (n if near == 0 else 0)
+    for j in range(n if near < 0 else 3):
+        corner = first + j
+        corner -= n if corner >= n else 0
         if _corner_resting(s, fpar, corner, c, sn, speed):
             passing += 1
     if passing < 2:
@@ -560,8 +571,14 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
         walls_before = counts[C_WALL]  # a wall in this impact, alone or shared with the table
+        contact = corner if surf == SURF_TABLE else np.int64(-1)  # a table corner within the gap tolerance
         u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts)
-        flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
+        flat = -1
+        if surf == SURF_TABLE and not (corner == contact and abs(u_n) > stick_speed):
+            # u_n is the corner's normal velocity after the impact, the one _corner_resting
+            # tests: a contact corner leaving faster is not resting, and no side lies flat
+            # without it (_flat_side). Most impacts of a many-sided die end so.
+            flat = _flat_side(s, fpar, n, stick_speed, corner if corner == contact else np.int64(-1))
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
         tip = _held_flat(s, fpar, n, stick_speed) if surf == SURF_TABLE and loaded else -1
