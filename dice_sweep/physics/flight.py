@@ -256,13 +256,27 @@ def _corner_step(f, fp, m2, tol, min_step):
     return safe_step(f, fp, m2)
 
 
+@numba.njit(inline="always")
+def _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step):
+    """``step`` shortened by a corner's safe step by the tighter bound m2_turn (safe up to
+    turn_time) or, if that is longer, the longer of turn_time and the wide bound's step (both
+    safe); the wide one is only computed while it could shorten ``step``."""
+    corner_step = _corner_step(f, fp, m2_turn, tol, min_step)
+    if corner_step > turn_time and step > turn_time:
+        corner_step = max(turn_time, _corner_step(f, fp, m2, tol, min_step))
+    return min(step, corner_step)
+
+
 @numba.njit(cache=True)
-def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, hit):
-    """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now."""
+def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, turn, hit):
+    """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now; with
+    ``turn`` >= 0 (rad) each corner also takes the tighter curvature bound (as
+    :func:`search_free` on a many-sided die)."""
     half_width = fpar[FP_WALL]
     rho_max = fpar[FP_RHO_MAX]
     arc = fpar[FP_CORNER_RADIUS]
     omega = s[5]
+    turn_time = turn / abs(omega) if turn >= 0.0 and omega != 0.0 else math.inf
     cphi = math.cos(s[2])
     sphi = math.sin(s[2])
     step = math.inf
@@ -280,13 +294,15 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
             continue
         h -= arc  # rounded corners: the arc centres against the surface moved by r (exact at 0)
         for k in range(n):
-            f, fp, m2, _ = _corner_motion(fpar, k, cphi, sphi, h, hv, nx, ny, omega, accel, 0.0)
+            f, fp, m2, m2_turn = _corner_motion(fpar, k, cphi, sphi, h, hv, nx, ny, omega, accel, max(turn, 0.0))
             if f <= tol and fp < -contact_speed:
                 if best_corner < 0 or fp < best_rate:
                     hit[0] = surf
                     hit[1] = k
                     best_corner = k
                     best_rate = fp
+            elif turn >= 0.0:
+                step = _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step)
             else:
                 step = min(step, _corner_step(f, fp, m2, tol, min_step))
     if best_corner >= 0:
@@ -378,12 +394,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                             best_corner = k
                             best_rate = fp
                     elif few_near:
-                        # safe up to turn_time by the tighter bound, and for ever by the wider one
-                        # (the wider one only matters while the step is longer than turn_time)
-                        corner_step = _corner_step(f, fp, m2_turn, tol, min_step)
-                        if corner_step > turn_time and step > turn_time:
-                            corner_step = max(turn_time, _corner_step(f, fp, m2, tol, min_step))
-                        step = min(step, corner_step)
+                        step = _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step)
                     else:
                         step = min(step, _corner_step(f, fp, m2, tol, min_step))
                 if count == n:
@@ -472,7 +483,7 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
         # bound |a| over the next h_ode: speed can grow by at most g h_ode meanwhile
         speed = math.sqrt(out[3] * out[3] + out[4] * out[4]) + g * h_ode  # not hypot: see outcome.rest_height
         drag_accel = c * speed * speed
-        step = _scan(out, fpar, n, n_surf, g + drag_accel, drag_accel, tol, min_step, contact_speed, hit)
+        step = _scan(out, fpar, n, n_surf, g + drag_accel, drag_accel, tol, min_step, contact_speed, -1.0, hit)
         if step < 0.0:
             return tau
         h = min(step, h_ode)
