@@ -318,7 +318,8 @@ def _table_gap(fpar, k, cos_phi, sin_phi, h):
 
 
 @numba.njit(cache=True)
-def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, phi0, vx0, vy0, omega):
+def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, phi0, vx0, vy0, omega,
+                known_phi, known_cos, known_sin):
     """Drag-free contact search from the state (x0, y0, phi0, vx0, vy0, omega): the steps of
     :func:`_scan` from the closed-form flight; a fair die of NEAR_MIN_SIDES or more without
     walls also takes each corner's tighter curvature bound (:func:`_corner_motion`, ``turn``).
@@ -333,6 +334,11 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     ``inline="always"`` function made the paper kernel 10 to 20 % slower (bench_kernel.py,
     interleaved runs).
 
+    ``known_cos`` and ``known_sin`` are the cosine and sine of the angle ``known_phi`` (NaN:
+    none), taken instead of computing them again when phi is that angle: a flight that starts
+    at an impact starts at the angle where the search that found it stopped (issue 33: a
+    20-sided roll has about 100 flights).
+
     Returns
     -------
     tau : float
@@ -341,6 +347,9 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
         The contact (-1, -1 when none).
     x, y, phi, vy : float
         The state at the contact or where the search stopped (vx and omega do not change).
+    trig_phi, cos_phi, sin_phi : float
+        The cosine and sine of trig_phi, the last angle whose cosine and sine were computed
+        (or known_phi and the known values).
     """
     g = fpar[FP_G]
     half_width = fpar[FP_WALL]
@@ -355,13 +364,12 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     result = STALLED
     hit_surf = -1
     hit_corner = -1
+    trig_phi, cphi, sphi = known_phi, known_cos, known_sin
     for _ in range(MAX_SEARCH_STEPS):
         step = math.inf
         best_corner = -1
         best_rate = 0.0
         trig = False
-        cphi = 0.0
-        sphi = 0.0
         for surf in range(n_surf):
             nx, ny, d = surface_frame(surf, half_width)
             h = d + nx * x + ny * y
@@ -372,8 +380,10 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                 continue
             h -= arc  # rounded corners: arc centres against the surface moved by r
             if not trig:
-                cphi = math.cos(phi)
-                sphi = math.sin(phi)
+                if phi != trig_phi:
+                    cphi = math.cos(phi)
+                    sphi = math.sin(phi)
+                    trig_phi = phi
                 trig = True
             first = 0
             count = n
@@ -425,7 +435,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
         y = y0 + vy0 * tau - 0.5 * g * tau * tau
         phi = phi0 + omega * tau
         vy = vy0 - g * tau
-    return result, hit_surf, hit_corner, x, y, phi, vy
+    return result, hit_surf, hit_corner, x, y, phi, vy, trig_phi, cphi, sphi
 
 
 @numba.njit(cache=True)
@@ -463,8 +473,9 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     c = fpar[FP_DRAG]
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
     if c == 0.0:
-        tau, surf, corner, out[0], out[1], out[2], out[4] = search_free(
-            fpar, n, n_surf, tau_max, tol, min_step, contact_speed, s0[0], s0[1], s0[2], s0[3], s0[4], s0[5]
+        tau, surf, corner, out[0], out[1], out[2], out[4], _, _, _ = search_free(
+            fpar, n, n_surf, tau_max, tol, min_step, contact_speed, s0[0], s0[1], s0[2], s0[3], s0[4], s0[5],
+            math.nan, 0.0, 0.0
         )
         out[3] = s0[3]
         out[5] = s0[5]
