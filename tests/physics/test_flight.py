@@ -76,6 +76,17 @@ def reference_touching_step(f, fp, m2, tol):
 
 
 @numba.njit
+def reference_turn_step(tight, wide, turn, omega):
+    """A corner's step from its tighter bound's step (safe while the die turns by at most
+    ``turn``) and the wide bound's: the tight one if it ends within the turn, else the longer of
+    the turn's time and the wide one (with turn < 0, no tighter bound: the wide one)."""
+    if turn < 0.0:
+        return wide
+    turn_time = turn / abs(omega) if omega != 0.0 else math.inf
+    return tight if tight <= turn_time else max(turn_time, wide)
+
+
+@numba.njit
 def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, hit, turn=-1.0):
     """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now: every
     surface, every corner, the quadratic bound of the module's docstring. With ``turn`` >= 0
@@ -109,21 +120,20 @@ def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, c
             f = h + nx * rx + ny * ry
             fp = hv + omega * (ny * rx - nx * ry)
             m2 = accel + rho * omega * omega
-            if f <= tol and fp < -contact_speed:
-                if best_corner < 0 or fp < best_rate:
-                    hit[0] = surf
-                    hit[1] = k
-                    best_corner = k
-                    best_rate = fp
-                continue
-            wide = max(reference_touching_step(f, fp, m2, tol), min_step) if f <= tol else safe_step(f, fp, m2)
-            if turn >= 0.0:
-                reach = min(rho, nx * rx + ny * ry + abs(ny * rx - nx * ry) * turn + 0.5 * rho * turn * turn)
-                m2_turn = accel + omega * omega * reach
-                tight = max(reference_touching_step(f, fp, m2_turn, tol), min_step) if f <= tol else safe_step(f, fp, m2_turn)
-                turn_time = turn / abs(omega) if omega != 0.0 else math.inf
-                wide = tight if tight <= turn_time else max(turn_time, wide)
-            step = min(step, wide)
+            reach = min(rho, nx * rx + ny * ry + abs(ny * rx - nx * ry) * max(turn, 0.0) + 0.5 * rho * turn * turn)
+            m2_turn = accel + omega * omega * reach if turn >= 0.0 else m2
+            if f <= tol:
+                if fp < -contact_speed:
+                    if best_corner < 0 or fp < best_rate:
+                        hit[0] = surf
+                        hit[1] = k
+                        best_corner = k
+                        best_rate = fp
+                else:
+                    wide = max(reference_touching_step(f, fp, m2, tol), min_step)
+                    step = min(step, reference_turn_step(max(reference_touching_step(f, fp, m2_turn, tol), min_step), wide, turn, omega))
+            else:
+                step = min(step, reference_turn_step(safe_step(f, fp, m2_turn), safe_step(f, fp, m2), turn, omega))
     if best_corner >= 0:
         return -1.0
     return step
