@@ -61,7 +61,7 @@ from bench_kernel import grid_states  # noqa: E402
 from dice_sweep.config import load_config  # noqa: E402
 from dice_sweep.physics import COUNT_COLUMNS, pack_params, roll_batch  # noqa: E402
 from dice_sweep.physics import flight, impact, kernel, outcome, pivot  # noqa: E402
-from dice_sweep.physics.params import FP_G, FP_RHO_MAX, FP_WALL, IP_N  # noqa: E402
+from dice_sweep.physics.params import FP_COM_X, FP_COM_Y, FP_G, FP_RHO_MAX, FP_WALL, IP_N  # noqa: E402
 from dice_sweep.mapper import initial_states  # noqa: E402
 from dice_sweep.sweep import axis_values  # noqa: E402
 
@@ -94,8 +94,15 @@ def tolerances(fpar):
     )
 
 
+def search_turn(fpar, ipar):
+    """The ``turn`` of ``flight._scan`` that gives ``search_free``'s steps: its tighter bound on a
+    fair die of flight.NEAR_MIN_SIDES or more without walls, else none (-1)."""
+    fair = fpar[FP_COM_X] == 0.0 and fpar[FP_COM_Y] == 0.0
+    return flight.NEAR_TURN if ipar[IP_N] >= flight.NEAR_MIN_SIDES and fair and math.isinf(fpar[FP_WALL]) else -1.0
+
+
 @numba.njit
-def count_search_steps(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out):
+def count_search_steps(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, turn, hit, out):
     """The drag-free search loop of ``next_contact``, counting its steps.
 
     Returns (tau, steps, far steps); far steps are those where the centre of mass was still
@@ -117,7 +124,7 @@ def count_search_steps(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hi
                 near = True
         if not near:
             far += 1
-        step = flight._scan(out, fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit)
+        step = flight._scan(out, fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, turn, hit)
         if step < 0.0:
             return tau, it + 1, far
         if tau + step > tau_max:
@@ -137,8 +144,8 @@ def replay_search(starts, fpar, ipar, t_left, tol, min_step, contact_speed, pre,
     found = 0
     for i in range(starts.shape[0]):
         s = starts[i]
-        tau, surf, corner, x, y, phi, vy = flight.search_free(
-            fpar, n, n_surf, t_left[i], tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5]
+        tau, surf, corner, x, y, phi, vy, _, _, _ = flight.search_free(
+            fpar, n, n_surf, t_left[i], tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5], math.nan, 0.0, 0.0
         )
         pre[i, 0] = x
         pre[i, 1] = y
@@ -156,15 +163,15 @@ def replay_search(starts, fpar, ipar, t_left, tol, min_step, contact_speed, pre,
 
 
 @numba.njit
-def replay_counts(starts, fpar, ipar, t_left, tol, min_step, contact_speed, steps, far):
+def replay_counts(starts, fpar, ipar, t_left, tol, min_step, contact_speed, turn, steps, far):
     hit = np.zeros(2, np.int64)
     out = np.empty(6)
     for i in range(starts.shape[0]):
-        _, steps[i], far[i] = count_search_steps(starts[i], fpar, ipar, t_left[i], tol, min_step, contact_speed, hit, out)
+        _, steps[i], far[i] = count_search_steps(starts[i], fpar, ipar, t_left[i], tol, min_step, contact_speed, turn, hit, out)
 
 
 @numba.njit
-def replay_interleaved(starts, fpar, ipar, t_left, tol, min_step, contact_speed, width, taus):
+def replay_interleaved(starts, fpar, ipar, t_left, tol, min_step, contact_speed, turn, width, taus):
     """The search from every flight start, ``width`` searches at a time, one step of each in
     turn: the kernel's own step (``flight._scan``) then ``flight.flight_state``, a lane taking
     the next start when its search ends. The steps of different searches are independent, so
@@ -190,7 +197,7 @@ def replay_interleaved(starts, fpar, ipar, t_left, tol, min_step, contact_speed,
             i = lane_start[lane]
             if i < 0:
                 continue
-            step = flight._scan(cur[lane], fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit)
+            step = flight._scan(cur[lane], fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, turn, hit)
             steps_left[lane] -= 1
             if step >= 0.0 and tau[lane] + step <= t_left[i] and steps_left[lane] > 0:
                 tau[lane] += step
@@ -246,13 +253,14 @@ def replay_impacts(pre, hits, fpar, ipar, post, u_n):
 
 
 @numba.njit
-def replay_outcome(post, hits, fpar, n, stick_speed):
-    """The checks ``_roll_event`` makes after every impact, as it makes them."""
+def replay_outcome(post, hits, u_n, fpar, n, stick_speed):
+    """The checks ``_roll_event`` makes after every impact, as it makes them (the replayed
+    impacts are single contacts: the corner that hit is the contact)."""
     acc = 0.0
     decide_bound = outcome.decision_bound(fpar)
     for i in range(post.shape[0]):
-        if hits[i, 0] == flight.SURF_TABLE:
-            acc += kernel._flat_side(post[i], fpar, n, stick_speed)
+        if hits[i, 0] == flight.SURF_TABLE and not abs(u_n[i]) > stick_speed:
+            acc += kernel._flat_side(post[i], fpar, n, stick_speed, hits[i, 1])
         energy = impact.specific_energy(post[i], fpar)
         acc += energy
         if energy < decide_bound:
@@ -316,7 +324,8 @@ def profile_case(config, num, repeat):
     replay_search(flights, fpar, ipar, t_left, tol, min_step, contact_speed, pre, hits)
     steps = np.empty(len(flights), np.int64)
     far = np.empty(len(flights), np.int64)
-    replay_counts(flights, fpar, ipar, t_left, tol, min_step, contact_speed, steps, far)
+    turn = search_turn(fpar, ipar)
+    replay_counts(flights, fpar, ipar, t_left, tol, min_step, contact_speed, turn, steps, far)
     kinds = np.empty(len(pivots), np.int64)
     piv_pre = np.empty((len(pivots), 6))
     piv_hits = np.empty((len(pivots), 2), np.int64)
@@ -336,17 +345,17 @@ def profile_case(config, num, repeat):
         "batch": (roll_batch, (fpar, ipar, states, out_o, out_s, out_c, out_t)),
         "contact search": (replay_search, (flights, fpar, ipar, t_left, tol, min_step, contact_speed, pre, hits)),
         "impact law": (replay_impacts, (imp_pre, imp_hits, fpar, ipar, post, u_n)),
-        "outcome checks": (replay_outcome, (post, imp_hits, fpar, n, stick_speed)),
+        "outcome checks": (replay_outcome, (post, imp_hits, u_n, fpar, n, stick_speed)),
         "pivots (closed form)": (replay_pivots, (pivots, fpar, n, kinds, piv_pre, piv_hits)),
         "fixed overhead": (roll_batch, (fpar, ipar, rest, out_o, out_s, out_c, out_t)),
     }
     taus = {width: np.empty(len(flights)) for width in LANE_WIDTHS}
     for width, out in taus.items():
-        replay_interleaved(flights, fpar, ipar, t_left, tol, min_step, contact_speed, width, out)
+        replay_interleaved(flights, fpar, ipar, t_left, tol, min_step, contact_speed, turn, width, out)
         if not np.array_equal(out, taus[LANE_WIDTHS[0]]):
             raise AssertionError(f"interleaving {width} searches changed their contact times")
     for width, out in taus.items():
-        timed[("lanes", width)] = (replay_interleaved, (flights, fpar, ipar, t_left, tol, min_step, contact_speed, width, out))
+        timed[("lanes", width)] = (replay_interleaved, (flights, fpar, ipar, t_left, tol, min_step, contact_speed, turn, width, out))
     best = {name: math.inf for name in timed}
     for _ in range(repeat):
         for name, (fn, args) in timed.items():

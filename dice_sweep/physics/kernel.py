@@ -20,6 +20,7 @@ import numba
 import numpy as np
 
 from dice_sweep.physics.flight import (
+    NEAR_MIN_SIDES,
     NO_CONTACT,
     STALLED,
     SURF_TABLE,
@@ -40,6 +41,7 @@ from dice_sweep.physics.impact import (
 )
 from dice_sweep.physics.params import (
     FP_COM_X,
+    FP_CORNERS,
     FP_COM_Y,
     FP_CORNER_RADIUS,
     FP_DRAG,
@@ -129,6 +131,7 @@ REST_ENERGY = 1e-9  # x g rho_max: a decided die this close to lying still is at
 # traded pivots and wall impacts at ~1e-9 m/s until the event budget (issue 33).
 PROPPED_CYCLES = 16
 RESTING_GAP = 1e-9  # x rho_max: a corner this close above the table rests on it (a flat die)
+LONE_MARGIN = 1e-9  # relative, x rho_max: round-off allowed for in _far_gap and _lone_contact
 DECIDED_SPEED_MARGIN = 1e-9  # relative: a sliding die counts as decided just below the barrier's speed
 SLIDE_STOP = 1e-15  # x sqrt(g rho_max): a slide this slow has stopped (round-off of the deceleration)
 SAMPLE_PAST = 1e-9  # x sqrt(rho_max/g): sample_batch runs a roll this far past its last sample time
@@ -229,11 +232,36 @@ def _scattered_impact(s, fpar, ipar, surf, corner, counts):
     return _add_scatter(s, fpar, ipar, surf, corner, vx0, vy0, w0, index, False)
 
 
+@numba.njit(cache=True)
+def _far_gap(fpar, n, tol):
+    """Gap (m) below which no corner of a fair die can be, other than a corner touching the table
+    (within tol) and its two neighbours: the nearest other corner is 2 rho sin(pi/n) sin(2 pi/n)
+    above the line of a side (rho the corners' distance from the centre of mass)."""
+    rho = fpar[FP_CORNERS]
+    return 2.0 * rho * math.sin(math.pi / n) * math.sin(2.0 * math.pi / n) * (1.0 - LONE_MARGIN) - 2.0 * tol
+
+
+@numba.njit(inline="always")
+def _lone_contact(s, fpar, n, corner, cos_phi, sin_phi, tol, far_gap):
+    """True if, on a fair die with the table alone (``far_gap`` from :func:`_far_gap`), no corner
+    but ``corner``, touching the table, can arrive within the contact window: second_contact
+    would find none. It looks at the two neighbours only (cos_phi, sin_phi: of the die's angle)."""
+    speed = math.sqrt(s[3] * s[3] + s[4] * s[4]) + abs(s[5]) * fpar[FP_RHO_MAX]
+    reach = tol + speed * max(fpar[FP_WINDOW], fpar[FP_CONTACT_TIME])  # second_contact's
+    if not reach < far_gap:
+        return False
+    h = s[1] - fpar[FP_CORNER_RADIUS] - LONE_MARGIN * fpar[FP_RHO_MAX]  # round-off of the gaps
+    below = corner - 1 + (n if corner == 0 else 0)
+    above = corner + 1 - (n if corner == n - 1 else 0)
+    return h + corner_offset(fpar, below, cos_phi, sin_phi)[1] > reach and h + corner_offset(fpar, above, cos_phi, sin_phi)[1] > reach
+
+
 @numba.njit(inline="always")  # as a call (four array arguments) it cost 8 % of fig08's rolls
-def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts):
+def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, lone, counts):
     """Resolve the impact of ``corner`` on ``surf`` together with a second contact arriving
     within the contact window, if any (physics/multi_contact.py), or, with the flat_landing
-    effect, within the contact time, sharing the impact.
+    effect, within the contact time, sharing the impact. ``lone``: none can (see
+    :func:`_lone_contact`).
 
     Returns the normal velocity after (m/s), surface and corner of the contact that decides
     what follows: of two arriving within the window, the table contact left slowest (a pivot
@@ -241,7 +269,10 @@ def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, count
     """
     window = fpar[FP_WINDOW]
     contact_time = fpar[FP_CONTACT_TIME]  # the flat_landing effect (0: off)
-    surf_b, corner_b, arrival = second_contact(s, fpar, ipar[IP_N], n_surf, surf, corner, max(window, contact_time), tol, contact_speed)
+    if lone:
+        surf_b, corner_b, arrival = np.int64(-1), np.int64(-1), math.inf
+    else:
+        surf_b, corner_b, arrival = second_contact(s, fpar, ipar[IP_N], n_surf, surf, corner, max(window, contact_time), tol, contact_speed)
     share = 1.0 if arrival <= window else 1.0 - arrival / max(contact_time, window)  # < 1: found by contact_time
     vx0, vy0, w0 = s[3], s[4], s[5]  # the stochastic law scales its jump by the approach
     if corner_b < 0 or not resolve_two_contacts(s, fpar, ipar, surf, corner, surf_b, corner_b, share, counts):
@@ -275,16 +306,27 @@ def _corner_resting(s, fpar, corner, c, sn, speed):
 
 
 @numba.njit(cache=True)
-def _flat_side(s, fpar, n, speed):
+def _flat_side(s, fpar, n, speed, near):
     """The side the die lies flat on (both its corners on the table, neither moving in or out
-    faster than ``speed``), or -1."""
+    faster than ``speed``), or -1.
+
+    ``near``: a corner touching the table (within the gap tolerance), or -1 (unknown). No three
+    corners of a regular polygon (arc centres too, loaded or not) lie within a tolerance of one
+    line: the nearest corner off a side is 2 R sin(pi/n) sin(2 pi/n) from its line (2.5e-3 R at
+    n = 127) against RESTING_GAP 1e-9. So a side lying flat has ``near`` as one of its two
+    corners, and only it and its two neighbours need counting: the same answer (n = 20 counted
+    20 corners on every table impact, issue 33).
+    """
     c = math.cos(s[2])
     sn = math.sin(s[2])
     # Both corners of the side must be resting; after a bounce only the corner that hit is,
     # if any. Counting the resting corners first skips side_below (a float modulo) on almost
     # every call, and changes no answer.
     passing = 0
-    for corner in range(n):
+    first = 0 if near < 0 else near - 1 + (n if near == 0 else 0)
+    for j in range(n if near < 0 else 3):
+        corner = first + j
+        corner -= n if corner >= n else 0
         if _corner_resting(s, fpar, corner, c, sn, speed):
             passing += 1
     if passing < 2:
@@ -547,13 +589,21 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     sliding_walls = n_surf == 3 and not math.isinf(fpar[FP_MU])  # a ladder needs walls and sliding friction
     loaded = fpar[FP_COM_X] != 0.0 or fpar[FP_COM_Y] != 0.0  # a fair die lying flat is never past its side
     last_was_flight_impact = False
+    # the angle whose cosine and sine the last search left: the next flight's start, after an impact
+    trig_phi = math.nan
+    trig_cos = 0.0
+    trig_sin = 0.0
+    # a fair many-sided die with the table alone: at a flight's contact only the contact corner's
+    # neighbours can be near the table (issue 33: second_contact looked at all 20 on every impact)
+    far_gap = _far_gap(fpar, n, tol) if n >= NEAR_MIN_SIDES and not loaded and n_surf == 1 else -1.0
     for _ in range(ipar[IP_MAX_EVENTS]):
         came_from_pivot = pivoting
         if not pivoting:
             if drag_free:
                 # next_contact's own drag-free search, called with the state as scalars
-                tau, surf, corner_hit, x, y, phi, vy = search_free(
-                    fpar, n, n_surf, t_max - t, tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5]
+                tau, surf, corner_hit, x, y, phi, vy, trig_phi, trig_cos, trig_sin = search_free(
+                    fpar, n, n_surf, t_max - t, tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5],
+                    trig_phi, trig_cos, trig_sin
                 )
             else:
                 tau = next_contact(s, fpar, ipar, t_max - t, tol, min_step, contact_speed, hit, after)
@@ -601,8 +651,15 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
         walls_before = counts[C_WALL]  # a wall in this impact, alone or shared with the table
-        u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, counts)
-        flat = _flat_side(s, fpar, n, stick_speed) if surf == SURF_TABLE else -1
+        contact = corner if surf == SURF_TABLE else np.int64(-1)  # a table corner within the gap tolerance
+        lone = far_gap > 0.0 and contact >= 0 and s[2] == trig_phi and _lone_contact(s, fpar, n, corner, trig_cos, trig_sin, tol, far_gap)
+        u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, lone, counts)
+        flat = -1
+        if surf == SURF_TABLE and not (corner == contact and abs(u_n) > stick_speed):
+            # u_n is the corner's normal velocity after the impact, the one _corner_resting
+            # tests: a contact corner leaving faster is not resting, and no side lies flat
+            # without it (_flat_side). Most impacts of a many-sided die end so.
+            flat = _flat_side(s, fpar, n, stick_speed, corner if corner == contact else np.int64(-1))
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
         tip = _held_flat(s, fpar, n, stick_speed) if surf == SURF_TABLE and loaded else -1

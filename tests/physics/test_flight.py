@@ -25,6 +25,8 @@ from scipy.optimize import minimize_scalar
 from dice_sweep.measured.fit import FIT_DRAG_MAX_STEP, FIT_DRAG_TOL
 from dice_sweep.physics.flight import (
     MAX_SEARCH_STEPS,
+    NEAR_MIN_SIDES,
+    NEAR_TURN,
     NO_CONTACT,
     REACH_MARGIN,
     STALLED,
@@ -38,6 +40,8 @@ from dice_sweep.physics.flight import (
 from dice_sweep.physics.kernel import CONTACT_SPEED, GAP_TOL, MIN_STEP, REC_T
 from dice_sweep.physics.params import (
     CORNER_STRIDE,
+    FP_COM_X,
+    FP_COM_Y,
     FP_CORNER_RADIUS,
     FP_CORNERS,
     FP_DRAG_MAX_STEP,
@@ -72,9 +76,24 @@ def reference_touching_step(f, fp, m2, tol):
 
 
 @numba.njit
-def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, hit):
+def reference_turn_step(tight, wide, turn, omega):
+    """A corner's step from its tighter bound's step (safe while the die turns by at most
+    ``turn``) and the wide bound's: the tight one if it ends within the turn, else the longer of
+    the turn's time and the wide one (with turn < 0, no tighter bound: the wide one)."""
+    if turn < 0.0:
+        return wide
+    turn_time = turn / abs(omega) if omega != 0.0 else math.inf
+    return tight if tight <= turn_time else max(turn_time, wide)
+
+
+@numba.njit
+def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, hit, turn=-1.0):
     """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now: every
-    surface, every corner, the quadratic bound of the module's docstring."""
+    surface, every corner, the quadratic bound of the module's docstring. With ``turn`` >= 0
+    (rad; a fair die of NEAR_MIN_SIDES or more without walls) each corner also has the bound
+    of its curvature over a turn of at most ``turn``, accel + omega^2 min(rho, n . r +
+    |n . r_perp| turn + rho turn^2 / 2), safe for steps up to turn / |omega|; beyond, the wider
+    bound's step is taken if longer."""
     half_width = fpar[FP_WALL]
     rho_max = fpar[FP_RHO_MAX]
     arc = fpar[FP_CORNER_RADIUS]
@@ -101,6 +120,8 @@ def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, c
             f = h + nx * rx + ny * ry
             fp = hv + omega * (ny * rx - nx * ry)
             m2 = accel + rho * omega * omega
+            reach = min(rho, nx * rx + ny * ry + abs(ny * rx - nx * ry) * max(turn, 0.0) + 0.5 * rho * turn * turn)
+            m2_turn = accel + omega * omega * reach if turn >= 0.0 else m2
             if f <= tol:
                 if fp < -contact_speed:
                     if best_corner < 0 or fp < best_rate:
@@ -109,9 +130,10 @@ def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, c
                         best_corner = k
                         best_rate = fp
                 else:
-                    step = min(step, max(reference_touching_step(f, fp, m2, tol), min_step))
+                    wide = max(reference_touching_step(f, fp, m2, tol), min_step)
+                    step = min(step, reference_turn_step(max(reference_touching_step(f, fp, m2_turn, tol), min_step), wide, turn, omega))
             else:
-                step = min(step, safe_step(f, fp, m2))
+                step = min(step, reference_turn_step(safe_step(f, fp, m2_turn), safe_step(f, fp, m2), turn, omega))
     if best_corner >= 0:
         return -1.0
     return step
@@ -124,10 +146,12 @@ def reference_search(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit,
     n = ipar[IP_N]
     g = fpar[FP_G]
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
+    fair = fpar[FP_COM_X] == 0.0 and fpar[FP_COM_Y] == 0.0
+    turn = NEAR_TURN if n >= NEAR_MIN_SIDES and fair and n_surf == 1 else -1.0
     out[:] = s0
     tau = 0.0
     for _ in range(MAX_SEARCH_STEPS):
-        step = reference_scan(out, fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit)
+        step = reference_scan(out, fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit, turn)
         if step < 0.0:
             return tau
         if tau + step > tau_max:
