@@ -6,9 +6,10 @@ On the same initial conditions (the fig08 grid of the Table I die):
 3. pymunk (Chipmunk2D) with the same die, Newton restitution and Coulomb friction, stepped at
    1e-4 s and stopped by the same energy rule (rolls per CPU second, one core);
 4. the CLI sweep of configs/fig08.toml at 1 and 2 workers (at --sweep-num, and at --long-num
-   where the fixed start of a command is a few per cent of it), the rigid law of 1 and 3 swept by
-   the CLI on 2 workers at --sweep-num against pymunk's rolls/s per core (issue 33; ``--rigid-cli``
-   runs only this), and `dice-sweep roll` with an empty numba cache: see 5.
+   where the fixed start of a command is a few per cent of it), the rigid law of 1 (pymunk's
+   physics) swept by the CLI on 2 workers at --sweep-num against pymunk's rolls/s per core
+   (issue 33; ``--rigid-cli`` runs only this), and `dice-sweep roll` with an empty numba cache:
+   see 5.
 Prints a Markdown table; ``--write`` puts it into docs/performance.md. Public API only.
 5. the cold start (issue 16): a new user's first commands and a CI job's, each a fresh process
    with an empty NUMBA_CACHE_DIR, on the engine the tool chooses and with the compile forced,
