@@ -40,9 +40,11 @@ def context(args):
 
 
 def law_variance(kind, u, law, speed):
-    """The law's per-component variance ((m/s)^2) at approach u, capped as the kernel caps it."""
-    s, f = law[kind]["value"] or 0.0, (law[kind]["floor"] or 0.0) * speed
-    return min(s * s * u * u + f * f, u * u)
+    """The law's per-component variance ((m/s)^2) at approach u (m/s), capped as the kernel caps it."""
+    from dice_sweep.measured.scatter import jump_sd
+
+    keys = {kind: law[kind]["value"] or 0.0, f"{kind}_floor": law[kind]["floor"] or 0.0, "power": law.get("power", {}).get("value", 1.0)}
+    return (jump_sd(keys, kind, u / speed) * speed) ** 2
 
 
 def residuals(args):

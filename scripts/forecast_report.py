@@ -118,7 +118,7 @@ def timed_forecast(args, fit):
     return seconds, json.loads((OUT / "forecast.json").read_text()), command, [list(load), list(os.getloadavg())]
 
 
-def inflation_scan(args, fit, factors=SCAN):
+def inflation_scan(args, fit, report, factors=SCAN):
     """Log scores from the release with every release state's covariance multiplied by f^2:
     the mean on the selection tracks for each f, and on the held-out tracks at the best one."""
     from dice_sweep.app.forecast import read_fit_file
@@ -159,7 +159,23 @@ def inflation_scan(args, fit, factors=SCAN):
     sd = np.median([np.sqrt(np.diag(f.cov)) for f in held], axis=0)
     return {"rows": rows, "best": best["factor"], "held_out": {k: held_scores[k] for k in ("log_score", "log_skill", "brier", "brier_skill",
                                                                                              "calibration", "mean_entropy", "n_tracks")},
-            "sd": sd.tolist(), "members": args.scan_members}
+            "sd": sd.tolist(), "members": args.scan_members, "ceiling": model_free(cfg, select, held, observed, report)}
+
+
+def model_free(cfg, select, held, observed, report):
+    """The k-nearest-neighbour forecast from the release states (no physics), trained on the
+    selection tracks' flight-0 states and sides, scored on the held-out tracks the report's
+    ensemble forecast from the release, paired with it; fc.neighbour_forecast's dict without
+    its arrays."""
+    from dice_sweep.measured import forecast as fc
+
+    train = [f for f in select if observed.get(f.traj) is not None]
+    ensemble = {t["traj"]: t["probabilities"] for t in report["scores"]["tracks"]}
+    test = [f for f in held if f.traj in ensemble]
+    got = fc.neighbour_forecast(np.array([f.state for f in train]), np.array([observed[f.traj] for f in train]),
+                                np.array([f.state for f in test]), np.array([observed[f.traj] for f in test]), cfg,
+                                reference=np.array([ensemble[f.traj] for f in test]))
+    return {key: value for key, value in got.items() if key not in ("probabilities", "reliability")}
 
 
 def chaos_rows():
@@ -217,11 +233,6 @@ def _bins_text(entry):
                      f"{b['observed_frequency']:.3f} [{b['ci95'][0]:.3f}, {b['ci95'][1]:.3f}])" for b in _bins_off(entry))
 
 
-def _law_sd(law, kind, u):
-    """The law's sd per component (in sqrt(g R)) at approach speed u (in sqrt(g R)), capped at u."""
-    return min(math.hypot(law.get(kind, 0.0) * u, law.get(f"{kind}_floor", 0.0)), u)
-
-
 def answer(report, scan, chaos):
     """The answer on real dice, in numbers, from the report."""
     s = report["scores"]
@@ -250,6 +261,7 @@ def answer(report, scan, chaos):
     ]
     scale = report["fit"].get("scatter_scale")
     from dice_sweep.config import load_config
+    from dice_sweep.measured.scatter import jump_sd
 
     die = load_config(CONFIG)
     speed = math.sqrt(report["fit"]["params"].get("g", die.world.g) * die.die.circumradius)
@@ -272,7 +284,7 @@ def answer(report, scan, chaos):
             + " What bounds it: the spread of the first impact alone, amplified by the map (below), leaves the members of one release "
             f"on all four sides in nearly equal shares (mean largest probability {s['mean_p_max']:.2f}); a sharper forecast would "
             f"need the first bounce to scatter less than the law says (a corner landing at the first impact's typical 3.9 sqrt(gR): "
-            f"{_law_sd(sc, 'corner', 3.9) * speed * 100:.0f} cm/s per component; a flat one {_law_sd(sc, 'flat', 3.9) * speed * 100:.0f} "
+            f"{jump_sd(sc, 'corner', 3.9) * speed * 100:.0f} cm/s per component; a flat one {jump_sd(sc, 'flat', 3.9) * speed * 100:.0f} "
             "cm/s), i.e. a better impact law, not a better tracker (the release state's own uncertainty is under a cell of the map).",
             "",
         ]
@@ -406,7 +418,7 @@ def main():
     (OUT / "bench.json").write_text(json.dumps({"seconds": seconds, "command": command, "fit": str(fit), "load": load}))
     for name, target in FIGURES.items():
         shutil.copyfile(OUT / "png" / name, ROOT / "docs" / "figures" / target)
-    scan = inflation_scan(args, fit)
+    scan = inflation_scan(args, fit, report)
     (OUT / "scan.json").write_text(json.dumps(scan, indent=1))
     write_doc(report, seconds, command, scan, fit, load)
     s = report["scores"]

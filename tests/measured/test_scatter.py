@@ -27,15 +27,16 @@ def config(truth):
                         '[contact]\nmodel = "rigid"\nbeta_normal = 0.4\nbeta_tangential = 0.2\nfriction = 0.5\n')
 
 
-def estimate(tmp_path_factory, spread, seed, floor=0.0):
-    truth = Truth(**LAW, scatter_corner=spread, scatter_flat=spread, scatter_floor=floor, scatter_seed=seed)
+def estimate(tmp_path_factory, spread, seed, floor=0.0, power=1.0, held=None):
+    truth = Truth(**LAW, scatter_corner=spread, scatter_flat=spread, scatter_floor=floor, scatter_power=power, scatter_seed=seed)
     drops = simulate_drops(truth, DROPS, seed, rate=500.0, duration=1.0, noise=NOISE)
     path = tmp_path_factory.mktemp(f"scatter{seed}") / "drops.csv"
     write_csv(path, drops)
     tracks = load_tracks(path, sides=4, circumradius=truth.circumradius)
     sigma = (NOISE[0], NOISE[0], NOISE[1])
     speed = math.sqrt(9.81 * truth.circumradius)
-    return estimate_spreads(impact_residuals(tracks.tracks, config(truth), (), PARAMS, sigma=sigma, seed=seed), speed=speed, seed=seed)
+    residuals = impact_residuals(tracks.tracks, config(truth), (), PARAMS, sigma=sigma, seed=seed)
+    return estimate_spreads(residuals, speed=speed, seed=seed, power=held)
 
 
 @pytest.mark.parametrize("seed", [11, 12])
@@ -48,6 +49,23 @@ def test_the_interval_covers_the_true_spread(tmp_path_factory, seed):
         assert low <= SPREAD <= high, (kind, got)
         assert high - low < 0.08, (kind, got)  # informative: not "anything from 0 to 1"
         assert got["floor_ci95"][0] == 0.0, (kind, got)  # the truth has no floor
+    # the control of the power: a spread proportional to u, so the interval holds its null value 1
+    low, high = spreads["power"]["ci95"]
+    assert low <= 1.0 <= high and high - low < 1.5, spreads["power"]
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_a_scatter_growing_faster_than_the_approach_is_found(tmp_path_factory, seed):
+    """Truth: sd = 0.02 sqrt(g R) (u / sqrt(g R))^2 and a floor of 0.05 sqrt(g R): fast
+    impacts scatter far more than a spread proportional to u gives. The power's interval
+    holds 2 and not 1, and the spread's and the floor's intervals hold the truth."""
+    spreads = estimate(tmp_path_factory, 0.02, seed, floor=0.05, power=2.0)
+    low, high = spreads["power"]["ci95"]
+    assert low <= 2.0 <= high and low > 1.0, spreads["power"]
+    for kind in ("corner", "flat"):
+        got = spreads[kind]
+        assert got["ci95"][0] <= 0.02 <= got["ci95"][1], (kind, got)
+        assert got["floor_ci95"][0] <= 0.05 <= got["floor_ci95"][1], (kind, got)
 
 
 @pytest.mark.parametrize("seed", [21, 22])
