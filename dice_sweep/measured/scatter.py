@@ -218,40 +218,43 @@ def _kind_arrays(chosen, speed, track_of):
             np.array([r.noise2 for r in chosen]) / 3.0, np.array([track_of[r.traj] for r in chosen]))
 
 
+def _variance(a, b, x, n):
+    """a + b x + n per impact (rows, impacts), kept above 0: a or b may be below 0 (a noise share
+    measured high), as long as the variance is not."""
+    return np.maximum(a[:, None] + b[:, None] * x + n, _TINY)
+
+
 def _loglik(a, b, x, y, n, counts):
     """Log-likelihood (rows,) of Gaussian residual components of variance a + b x + n."""
-    v = np.maximum(np.maximum(a, 0.0)[:, None] + np.maximum(b, 0.0)[:, None] * x + n, _TINY)
+    v = _variance(a, b, x, n)
     return (counts * (-1.5 * np.log(v) - 1.5 * y / v)).sum(axis=1)
 
 
-def _ml_fit(x, y, n, counts, free, start):
-    """Maximum likelihood of the per-component variance a + b x + n (a, b >= 0) of Gaussian
+def _ml_fit(x, y, n, counts, start):
+    """:func:`_fit_from` from the share ``start`` of the mean excess over the noise in a."""
+    mean = max(float(np.mean(y - n)), _TINY)
+    rows = counts.shape[0]
+    return _fit_from(x, y, n, counts, np.full(rows, start * mean), np.full(rows, (1.0 - start) * mean / max(float(np.mean(x)), _TINY)))
+
+
+def _fit_from(x, y, n, counts, a, b):
+    """Maximum likelihood of the per-component variance a + b x + n of Gaussian
     residuals whose mean square is y, each impact counted ``counts`` times (rows: bootstrap
     resamples): Fisher scoring (least squares of y - n on (1, x) weighted by 1 / variance^2),
     each step shortened as far as STEP_SHARES says to climb the likelihood (a full step can
-    overshoot to a lower stationary point), from the share ``start`` of the mean square in a;
-    ``free``: which of (a, b) the fit frees (the other is 0). Returns a, b, log-likelihood,
+    overshoot to a lower stationary point), from (a, b) (rows,). Returns a, b, log-likelihood,
     each of shape (rows,)."""
-    rows = counts.shape[0]
     target = y - n
-    mean = max(float(np.mean(target)), _TINY)
-    a = np.full(rows, start * mean if free[0] else 0.0)
-    b = np.full(rows, (1.0 - start) * mean / max(float(np.mean(x)), _TINY) if free[1] else 0.0)
     loglik = _loglik(a, b, x, y, n, counts)
     for _ in range(IRLS_STEPS):
-        v = np.maximum(np.maximum(a, 0.0)[:, None] + np.maximum(b, 0.0)[:, None] * x + n, _TINY)
+        v = _variance(a, b, x, n)
         w = counts / (v * v)
-        if free[0] and free[1]:
-            sw, sx, sxx = w.sum(axis=1), (w * x).sum(axis=1), (w * x * x).sum(axis=1)
-            sy, sxy = (w * target).sum(axis=1), (w * x * target).sum(axis=1)
-            det = sw * sxx - sx * sx
-            ok = det > 1e-12 * np.maximum(sw * sxx, _TINY)  # one approach speed only: no line
-            a_new = np.where(ok, (sxx * sy - sx * sxy) / np.where(ok, det, 1.0), a)
-            b_new = np.where(ok, (sw * sxy - sx * sy) / np.where(ok, det, 1.0), b)
-        elif free[0]:
-            a_new, b_new = (w * target).sum(axis=1) / w.sum(axis=1), b
-        else:
-            a_new, b_new = a, (w * x * target).sum(axis=1) / np.maximum((w * x * x).sum(axis=1), _TINY)
+        sw, sx, sxx = w.sum(axis=1), (w * x).sum(axis=1), (w * x * x).sum(axis=1)
+        sy, sxy = (w * target).sum(axis=1), (w * x * target).sum(axis=1)
+        det = sw * sxx - sx * sx
+        ok = det > 1e-12 * np.maximum(sw * sxx, _TINY)  # one approach speed only: no line, stay
+        a_new = np.where(ok, (sxx * sy - sx * sxy) / np.where(ok, det, 1.0), a)
+        b_new = np.where(ok, (sw * sxy - sx * sy) / np.where(ok, det, 1.0), b)
         best = (a, b, loglik)
         for share in STEP_SHARES:
             ta, tb = a + share * (a_new - a), b + share * (b_new - b)
@@ -262,39 +265,34 @@ def _ml_fit(x, y, n, counts, free, start):
     return a, b, loglik
 
 
-def _constrained(x, y, n, counts):
-    """(a, b, log-likelihood) of the best fit with a, b >= 0: the best free line (the
-    likelihood can have more than one stationary point: from STARTS) where both come out
-    >= 0, else the better of the lines with one of them 0."""
-    best = None
-    for start in STARTS:
-        got = _ml_fit(x, y, n, counts, (True, True), start)
-        valid = (got[0] >= 0.0) & (got[1] >= 0.0) & np.isfinite(got[2])
-        loglik = np.where(valid, got[2], -np.inf)
-        if best is None:
-            best = (got[0], got[1], loglik)
-        else:
-            better = loglik > best[2]
-            best = tuple(np.where(better, new, old) for new, old in zip((got[0], got[1], loglik), best))
-    floor_only = _ml_fit(x, y, n, counts, (True, False), 1.0)
-    spread_only = _ml_fit(x, y, n, counts, (False, True), 0.0)
-    inside = np.isfinite(best[2])
-    edge = np.where(floor_only[2] >= spread_only[2], 0, 1)
-    a = np.where(inside, best[0], np.where(edge == 0, np.maximum(floor_only[0], 0.0), 0.0))
-    b = np.where(inside, best[1], np.where(edge == 1, np.maximum(spread_only[1], 0.0), 0.0))
-    loglik = np.where(inside, best[2], np.maximum(floor_only[2], spread_only[2]))
-    return a, b, loglik
+def _best_fit(x, y, n, counts, near=None):
+    """(a, b, log-likelihood) of the best line (the likelihood can have more than one
+    stationary point: from STARTS, or from ``near``, an (a, b) of the whole sample that a
+    resample starts from). a and b are signed, as a least-squares line's would be: an excess
+    below the noise share reads below 0, so an interval can reach 0 and hold it."""
+    rows = counts.shape[0]
+    if near is None:
+        fits = [_ml_fit(x, y, n, counts, start) for start in STARTS]
+    else:
+        fits = [_fit_from(x, y, n, counts, np.full(rows, near[0]), np.full(rows, near[1]))]
+    best = fits[0]
+    for got in fits[1:]:
+        better = got[2] > best[2]
+        best = tuple(np.where(better, new, old) for new, old in zip(got, best))
+    return best
 
 
-def _profile(arrays, counts, speed, powers):
+def _profile(arrays, counts, speed, powers, near=None):
     """For each power: (a, b) per kind and the summed log-likelihood, rows as ``counts``
-    (resamples x tracks): {kind: (a (powers, rows), b)}, loglik (powers, rows)."""
+    (resamples x tracks): {kind: (a (powers, rows), b)}, loglik (powers, rows). ``near``: a
+    profile of the whole sample (one row) whose fits the resamples start from."""
     fits = {kind: (np.zeros((len(powers), counts.shape[0])), np.zeros((len(powers), counts.shape[0]))) for kind in arrays}
     total = np.zeros((len(powers), counts.shape[0]))
     for kind, (u, y, n, track) in arrays.items():
         per_impact = counts[:, track]
         for k, power in enumerate(powers):
-            a, b, loglik = _constrained(speed**2 * u ** (2.0 * power), y, n, per_impact)
+            start = None if near is None else (near[kind][0][k, 0], near[kind][1][k, 0])
+            a, b, loglik = _best_fit(speed**2 * u ** (2.0 * power), y, n, per_impact, start)
             fits[kind][0][k], fits[kind][1][k] = a, b
             total[k] += loglik
     return fits, total
@@ -330,7 +328,7 @@ def estimate_spreads(residuals, *, speed, seed=0, draws=BOOTSTRAP, power=None):
     fits, total = _profile(arrays, ones, speed, powers)
     best = int(np.argmax(total[:, 0]))
     counts = rng.multinomial(len(trajs), np.full(len(trajs), 1.0 / len(trajs)), size=draws).astype(float)
-    boot_fits, boot_total = _profile(arrays, counts, speed, powers)
+    boot_fits, boot_total = _profile(arrays, counts, speed, powers, near=fits)
     boot_best = np.argmax(boot_total, axis=0)
     rows = np.arange(draws)
     for kind in arrays:
@@ -344,7 +342,10 @@ def estimate_spreads(residuals, *, speed, seed=0, draws=BOOTSTRAP, power=None):
     chosen_powers = np.asarray(powers)[boot_best]
     out["power"] = {"value": float(powers[best]), "ci95": [float(v) for v in np.percentile(chosen_powers, [2.5, 97.5])],
                     "held": power is not None, "at_grid_end": power is None and best in (0, len(powers) - 1),
-                    "profile_log_likelihood": {f"{p:g}": float(v) for p, v in zip(powers, total[:, 0] - total[best, 0])}}
+                    "profile_log_likelihood": {f"{p:g}": float(v) for p, v in zip(powers, total[:, 0] - total[best, 0])},
+                    # the law's best spreads and floors at every power, for a choice of the power by other means
+                    "by_power": {f"{p:g}": {kind: {"value": _sigma(fits[kind][1][k, 0]), "floor": _sigma(fits[kind][0][k, 0]) / speed}
+                                            for kind in arrays} for k, p in enumerate(powers)}}
     return out
 
 

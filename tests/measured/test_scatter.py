@@ -89,18 +89,31 @@ def test_without_scatter_the_interval_holds_zero(tmp_path_factory):
         assert got["floor_ci95"][0] == 0.0 and got["floor_ci95"][1] < 0.05, (kind, got)
 
 
-def test_the_weighted_line_by_hand():
+def test_the_law_of_an_exact_line_by_hand():
     """Impacts on an exact line (|r|^2 - n) / 3 = f^2 + s^2 u^2: the fit returns s and f (f in
-    units of the speed given); an unstable impact is left out; the TOML section reads back."""
+    units of the speed given) and the power 1; an unstable impact is left out; the TOML section
+    reads back."""
     s2, f2, speed = 0.01, 0.0004, 0.5
     rows = [ImpactResidual(t, "corner", u, 3 * (f2 + s2 * u * u) + 0.01, 0.01, 0.001) for t, u in enumerate((0.5, 1.0, 2.0, 3.0, 1.5), 1)]
     rows.append(ImpactResidual(9, "corner", 1.0, 50.0, 9.0, 9.0))  # unstable: its probe share is far above 0.1 u
-    spreads = estimate_spreads(rows, speed=speed, draws=200)
+    free = estimate_spreads(rows, speed=speed, draws=200)
+    assert free["power"]["value"] == 1.0 and free["corner"]["value"] == pytest.approx(0.1)
+    spreads = estimate_spreads(rows, speed=speed, draws=200, power=1.0)  # held: every resample on the same line
     got = spreads["corner"]
     assert got["value"] == pytest.approx(0.1) and got["floor"] == pytest.approx(0.02 / speed)
     assert got["impacts"] == 5 and got["unstable"] == 1 and got["tracks"] == 5
     assert got["ci95"][0] == pytest.approx(0.1) and got["ci95"][1] == pytest.approx(0.1)  # an exact line: every resample agrees
     assert spreads["flat"]["value"] is None  # no impact of that kind
-    cfg = parse_config(scatter_section(spreads))
+    cfg = parse_config(scatter_section(free))
     assert cfg.scatter.corner == pytest.approx(0.1) and cfg.scatter.corner_floor == pytest.approx(0.04)
-    assert cfg.scatter.flat == 0.0 and cfg.scatter.flat_floor == 0.0
+    assert cfg.scatter.flat == 0.0 and cfg.scatter.flat_floor == 0.0 and cfg.scatter.power == 1.0
+
+
+def test_a_power_read_from_the_residuals_by_hand():
+    """Impacts on an exact curve with the spread term growing as u^2: the power found is 2 and
+    the spread the one the residuals were made with."""
+    speed = 0.5
+    rows = [ImpactResidual(t, "flat", u, 3 * (0.0004 + (0.05 * speed * (u / speed) ** 2) ** 2) + 0.01, 0.01, 0.001)
+            for t, u in enumerate((0.5, 1.0, 2.0, 3.0, 1.5, 0.8), 1)]
+    got = estimate_spreads(rows, speed=speed, draws=100)
+    assert got["power"]["value"] == 2.0 and got["flat"]["value"] == pytest.approx(0.05)
