@@ -356,13 +356,14 @@ def scatter_table(runner, args):
                 draw_sweep_file(sweep.path, FIGURES / f"chaos_scatter_{name}.png", dpi=80)
             rows.append([
                 f"{name} (n = {sweep.sides})", f"{scale_num} x {scale_num}", sweep.draws,
-                ", ".join(f"{scale * getattr(scatter, key):.4f}" for key in SCATTER_SCALED),
+                ", ".join([f"{scale * getattr(scatter, key):.4f}" for key in SCATTER_SCALED]
+                          + [f"{getattr(scatter, key):g}" for key in effect_registry.scatter_law_keys() if key not in SCATTER_SCALED]),
                 f"{100 * p.predictable:.1f} % [{100 * low:.1f}, {100 * high:.1f}]",
                 f"{sweep.probability[:-1].max(axis=0).mean():.3f}",
                 f"{p.basin_entropy:.3f} ({p.basin_entropy_corrected:.3f})", f"{math.log(sweep.sides):.3f}",
                 f"{100 * p.no_answer:.2f} %", f"{100 * same:.1f} %" if scale_num == num else "",
             ])
-    header = ["map", "pixels", "draws M", "corner: spread, floor; flat: spread, floor", "predictable: p >= 0.9 [range from the M draws]",
+    header = ["map", "pixels", "draws M", "corner: spread, floor; flat: spread, floor; power", "predictable: p >= 0.9 [range from the M draws]",
               "mean p(most likely)", "basin entropy, nats (Miller-Madow)", "fair die ln n", "no answer",
               "most likely side = deterministic side"]
     keys = ", ".join(f"{key} = {getattr(scatter, key):.4g}" for key in effect_registry.scatter_law_keys())

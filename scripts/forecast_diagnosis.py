@@ -4,6 +4,7 @@
     python scripts/forecast_diagnosis.py flights     # (b) the flight-K states: frames, reduced chi-square, sds
     python scripts/forecast_diagnosis.py calibration [--members 500] [--scale S]  # forecasts of the selection tracks, every K
     python scripts/forecast_diagnosis.py scale       # fit_scatter_scale on the selection tracks -> out/forecast/<fit>_scaled.json
+    python scripts/forecast_diagnosis.py release_width [--law ...]  # the K = 0 log skill at every factor on the law
 
 The fit is the cross-fitted diagnose's held-out model (out/measured/report.json, or --fit):
 fold 0's model, chosen and fitted on fold 1's tracks, which are the selection tracks here; the
@@ -84,8 +85,10 @@ def residuals(args):
         if not got.size:
             return {"impacts": 0}
         boot = np.random.default_rng(0).choice(got, size=(2000, got.size)).mean(axis=1)
+        # a Gaussian jump's |r|^2 is the law's variance times chi-square(3) / 3: mean / median 1.27
         return {"impacts": int(got.size), "mean_ratio": round(float(got.mean()), 3),
-                "ci95": [round(float(v), 3) for v in np.quantile(boot, [0.025, 0.975])], "median_u_sqrtgR": round(float(np.median(u[mask])), 2)}
+                "ci95": [round(float(v), 3) for v in np.quantile(boot, [0.025, 0.975])], "median_ratio": round(float(np.median(got)), 3),
+                "median_u_sqrtgR": round(float(np.median(u[mask])), 2)}
 
     for k in range(5):
         print(json.dumps({"by_impact": k if k < 4 else "4+", "found": found.get(k, 0), **group(index == k)}))
@@ -164,9 +167,27 @@ def scale(args):
     print(json.dumps({k: v for k, v in found.items() if k != "rule"}))
 
 
+def release_width(args):
+    """How good the forecast from the release can get by the law's width alone, on the selection
+    tracks: the factor on the law (the fit's, or --law) whose forecasts from flight 0 alone have
+    the best log score, and that score's skill at every factor (in-sample: an optimistic bound
+    for a law of this form)."""
+    from dice_sweep.measured import forecast as fc
+
+    cfg, source, select_set, table, sigma = context(args)
+    if args.law:
+        c, cf, f, ff, *p = (float(v) for v in args.law.split(","))
+        source = dataclasses.replace(source, scatter={"corner": c, "corner_floor": cf, "flat": f, "flat_floor": ff, "power": p[0] if p else 1.0})
+    observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
+    prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    found = fc.fit_scatter_scale(prepared, cfg, source, (0,), sigma=sigma, observed=observed, members=args.members, workers=2)
+    print(json.dumps({"law": source.scatter, "best_factor": found["value"], "ci95": found["ci95"], "tracks": found["pairs"],
+                      "log_skill_by_factor": {f"{g:g}": round(v + math.log(cfg.die.sides), 4) for g, v in zip(found["grid"], found["mean_log_score"])}}))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("what", choices=("residuals", "flights", "calibration", "scale"))
+    parser.add_argument("what", choices=("residuals", "flights", "calibration", "scale", "release_width"))
     parser.add_argument("--fit", default=str(ROOT / "out" / "measured" / "report.json"))
     parser.add_argument("--members", type=int, default=500)
     parser.add_argument("--scale", type=float, default=1.0)
@@ -177,7 +198,7 @@ def main():
     if not DATA.exists():
         print(f"skipped: {DATA} not found")
         return 0
-    {"residuals": residuals, "flights": flights, "calibration": calibration, "scale": scale}[args.what](args)
+    {"residuals": residuals, "flights": flights, "calibration": calibration, "scale": scale, "release_width": release_width}[args.what](args)
     return 0
 
 

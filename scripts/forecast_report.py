@@ -259,7 +259,7 @@ def _bins_text(entry):
                      f"{b['observed_frequency']:.3f} [{b['ci95'][0]:.3f}, {b['ci95'][1]:.3f}])" for b in _bins_off(entry))
 
 
-def answer(report, scan, chaos):
+def answer(report, scan, chaos, form=None):
     """The answer on real dice, in numbers, from the report."""
     s = report["scores"]
     by = {b["from_bounce"]: b for b in s["by_bounce"]}
@@ -272,8 +272,10 @@ def answer(report, scan, chaos):
         lines += ["**Warning (from the command):** " + "; ".join(report["warnings"]) + ".", ""]
     lines += [
         f"**From the release, with bounces that scatter as real ones do, the forecast is "
-        + ("calibrated" if calibrated else "not calibrated") + " and a little better than chance.** "
-        f"The ensemble draws every impact of every member from the stochastic impact law fitted on the selection tracks "
+        + ("calibrated" if calibrated else "not calibrated")
+        + (" and a little better than chance.** " if s["log_skill"]["ci95"][0] > 0.0 else
+           " and no better than chance.** " if s["log_skill"]["ci95"][1] >= 0.0 else " and worse than chance.** ")
+        + f"The ensemble draws every impact of every member from the stochastic impact law fitted on the selection tracks "
         f"([scatter] {law}; docs/measured_method.md, \"The scatter of real bounces\"). On the {s['n_tracks']} held-out drops its "
         f"calibration z is {s['calibration']['log_score_z']:.1f} (log) and {s['calibration']['brier_z']:.1f} (Brier)"
         + (", every well-filled reliability bin holds its mean prediction in its 95 % interval" if _bins_ok(s) else
@@ -281,8 +283,10 @@ def answer(report, scan, chaos):
         + f"; its log skill over 1/n is {_ci(s['log_skill'])} nats of a possible ln 4 = 1.386 (Brier skill {_ci(s['brier_skill'])}), "
         f"its most likely side right {_pct(s['share_correct_most_likely'])} against 25 % by chance (the deterministic forecast "
         f"{_pct(s['share_correct_deterministic'])}, with a log score of {_ci(s['log_score_deterministic'])}). Mean entropy "
-        f"{s['mean_entropy']:.2f} nats of ln 4 = 1.39: **the release of a real drop carries about "
-        f"{100 * s['log_skill']['value'] / math.log(4):.0f} % of the information that would fix its side.**",
+        f"{s['mean_entropy']:.2f} nats of ln 4 = 1.39"
+        + (f": **the release of a real drop carries about {100 * s['log_skill']['value'] / math.log(4):.0f} % of the information "
+           "that would fix its side.**" if s["log_skill"]["ci95"][0] > 0.0 else
+           ": **this forecast draws no measurable information about the side from the release.**"),
         "",
     ]
     scale = report["fit"].get("scatter_scale")
@@ -294,7 +298,8 @@ def answer(report, scan, chaos):
     if recal:
         goal = GOALS["blend_skill_k0"]
         lines += [
-            ("No blend is needed" if calibrated else "A blend does not calibrate it either" if not _calibrated(recal) else "The blend is")
+            ("No blend is needed" if calibrated and recal["weight_uniform"] < 0.05 else "The blend is not needed for calibration"
+             if calibrated else "A blend does not calibrate it either" if not _calibrated(recal) else "The blend is")
             + f": the blend with the uniform forecast that the selection tracks choose has w = "
             f"{recal['weight_uniform']:.2f} and scores {_ci(recal['log_skill'])} (the comparison row of the report). Without the "
             f"stochastic law (issue 18's forecast, on the loop's earlier fit) the raw ensemble scored -2.160 [-2.725, -1.614] at z = -77 "
@@ -344,6 +349,9 @@ def answer(report, scan, chaos):
             f"factor whose forecasts of the {scale['tracks']} selection tracks from flights {', '.join(map(str, scale['bounces']))} "
             f"({scale['pairs']} track-flight pairs) have the best summed log score (a proper score; held-out tracks take no part)"
             + (", at the end of the factors tried" if scale["at_grid_end"] else "")
+            + ("" if not form else ". The law's form, its power of the approach speed, was chosen the same way: "
+               + "; ".join(f"power {c['power']:g} (its own factor {c['scale']:.3f}): summed log score {c['summed_log_score']:.2f}"
+                           for c in form["candidates"]) + f"; kept: {form['chosen_power']:g}")
             + ". docs/dev/forecast_flight1.md says why the forecast from flight 1 was overconfident with the loop's earlier fit "
             "(its corner law's floor, which the clean impacts hardly pin down) and what was measured on the selection tracks.",
             "",
@@ -427,7 +435,8 @@ def write_doc(report, seconds, command, scan, fit, load=None):
              f"tracks, every flight), {total['map']:.0f} s for the {m['size'][0]} x {m['size'][1]} map, the rest starting Python and "
              "writing. It includes every forecast point of by_bounce and the selection tracks of the recalibration, not only K = 0.")
     text = intro.format(fit=fit.relative_to(ROOT) if fit.is_relative_to(ROOT) else fit)
-    text += "\n## The answer on real dice\n\n" + answer(report, scan, chaos_rows())
+    form = json.loads(Path(fit).read_text()).get("scatter_form")
+    text += "\n## The answer on real dice\n\n" + answer(report, scan, chaos_rows(), form)
     text += ("\n| skill against the flight forecast from | reliability, from the release |\n|---|---|\n"
              "| ![skill](figures/forecast_skill.png) | ![reliability](figures/forecast_reliability.png) |\n\n"
              "![release map](figures/forecast_map.png)\n\n"

@@ -357,3 +357,39 @@ def test_the_model_free_forecast_pairs_with_a_reference():
     test, test_sides = _release_drops(100, 4, True)
     got = fc.neighbour_forecast(train, train_sides, test, test_sides, cfg, draws=200, reference=np.full((100, 4), 0.25))
     assert got["log_skill_over_reference"]["value"] == pytest.approx(got["log_skill"]["value"])
+
+
+# --- the law's form: a scatter growing faster than the approach speed (issue 31) -----------------
+
+
+@pytest.mark.slow
+def test_a_law_whose_power_is_estimated_forecasts_calibrated(tmp_path_factory):
+    """Drops whose bounces scatter with sd 0.02 sqrt(gR) (u / sqrt(gR))^2 and a floor of 0.03
+    sqrt(gR): the law estimated from 120 of them (impact residuals, the power free) has a power
+    interval holding 2 and not 1, and a scale (chosen by those drops' forecasts) holding 1;
+    forecasts of 160 other drops from the release and from flights 1 and 2 with it are
+    calibrated (|z| < 3). By hand (the same calls, load 8): power 2.0 [1.8, 2.2], scale 0.96
+    [0.78, 1.13]; z log -0.0, 0.8, 1.4. The old form (power held at 1, its own scale 1.17 [0.85,
+    1.39]) gave -0.7, 2.1, 1.9: also within 3 on drops this few, so this does not show it fail."""
+    from dice_sweep.measured.scatter import estimate_spreads, impact_residuals
+
+    truth = Truth(**TRUTH, scatter_corner=0.02, scatter_flat=0.02, scatter_floor=0.03, scatter_power=2.0, scatter_seed=7)
+    selection, seen = synthetic(tmp_path_factory, "power_selection", truth, 120, 7, PRECISE, 500.0)
+    other, other_seen = synthetic(tmp_path_factory, "power_other", truth, 160, 8, PRECISE, 500.0)
+    sigma = (PRECISE[0], PRECISE[0], PRECISE[1])
+    residuals = impact_residuals(selection.tracks, RIGID, (), TRUTH_PARAMS, sigma=sigma, seed=7)
+    got = estimate_spreads(residuals, speed=math.sqrt(9.81 * RIGID.die.circumradius), seed=7)
+    low, high = got["power"]["ci95"]
+    assert low <= 2.0 <= high and low > 1.0, got["power"]
+    law = {"corner": got["corner"]["value"], "corner_floor": got["corner"]["floor"], "flat": got["flat"]["value"],
+           "flat_floor": got["flat"]["floor"], "power": got["power"]["value"]}
+    prepared = fc.prepared_tracks(selection.tracks, RIGID, sigma, 0.0, seen)
+    scale = fc.fit_scatter_scale(prepared, RIGID, scattered_source(dict(TRUTH_PARAMS), law), (0, 1, 2), sigma=sigma, observed=seen,
+                                 members=200, workers=2)
+    assert scale["ci95"][0] <= 1.0 <= scale["ci95"][1], scale
+    source = scattered_source(dict(TRUTH_PARAMS), fc.scaled_scatter(law, scale["value"]))
+    out, _, _ = fc.forecast_tracks(other.tracks, RIGID, source, sigma=sigma, bounces=(0, 1, 2), members=500, workers=2, observed=other_seen)
+    for k in (0, 1, 2):
+        s = fc.score_bounce(out[k], 4, np.random.default_rng(0))
+        assert s["n_tracks"] >= 100
+        assert abs(s["calibration"]["log_score_z"]) < 3 and abs(s["calibration"]["brier_z"]) < 3, (k, s["calibration"])
