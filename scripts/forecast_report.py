@@ -87,7 +87,7 @@ def with_scatter(args, fit):
     from dice_sweep.measured import forecast as fc
     from dice_sweep.measured.noise import tracking_noise
     from dice_sweep.measured.report import jsonable
-    from dice_sweep.measured.scatter import fitted_scatter
+    from dice_sweep.measured.scatter import fitted_scatter, scatter_section
     from dice_sweep.measured.tracks import load_tracks
 
     def say(line):
@@ -120,6 +120,7 @@ def with_scatter(args, fit):
     for kind in SCATTER_KINDS:
         law[kind] = {**law[kind], **chosen["law"][kind]}  # the chosen power's spreads and floors (intervals: the residuals' power)
     law["power"] = {**law["power"], "value": chosen["power"], "from_residuals": residual_power}
+    law["toml"] = scatter_section(law)  # the [scatter] section of the law kept (unscaled, as the JSON's spreads)
     data["scatter_scale"] = chosen["scale"]
     data["scatter_form"] = {"candidates": [{k: c[k] for k in ("power", "law", "summed_log_score")} | {"scale": c["scale"]["value"],
                                             "scale_ci95": c["scale"]["ci95"]} for c in candidates], "chosen_power": chosen["power"],
