@@ -26,11 +26,13 @@ import math
 from dataclasses import dataclass
 
 __all__ = ["ConfigKey", "Param", "Effect", "EFFECTS", "NOISE_MODELS", "BASE_PARAMS", "effect", "noise_model", "config_key_specs",
-           "set_key", "get_key", "declared_effects", "with_values", "param", "names", "MAX_SCATTER", "MAX_DRAWS", "MAX_SEED"]
+           "set_key", "get_key", "declared_effects", "with_values", "param", "names", "MAX_SCATTER", "MAX_DRAWS", "MAX_SEED",
+           "MAX_POWER", "SCATTER_KINDS", "scatter_spread_keys", "scatter_law_keys"]
 
 MAX_SCATTER = 1.0  # relative spread of an impact's velocity jump: beyond 1 the jump exceeds the approach
 MAX_DRAWS = 4096  # draws per start of a stochastic sweep
 MAX_SEED = 2**53 - 1  # the kernel keeps the seed in a float64 slot, exact below 2^53
+MAX_POWER = 4.0  # the scatter's power of the approach speed: u^4 at sqrt(g R) ... 5 sqrt(g R) spans 600x, wider than any drop
 
 
 @dataclass(frozen=True)
@@ -392,8 +394,9 @@ def _spread(name, help, slot, unit, scale=None):
     return key, Param(f"scatter_{name}", unit, key.dotted, lambda cfg: (key.low, key.high), key.default, (), 0.01)
 
 
+SCATTER_KINDS = ("corner", "flat")  # the law's landing kinds, by tilt (physics/scatter.FLAT_TILT)
 _SPREADS = (
-    _spread("corner", "the velocity jump's sd over the approach speed, landings on a corner", "FP_SCATTER_CORNER",
+    _spread("corner", "the velocity jump's sd over the approach speed at u = sqrt(g R), landings on a corner", "FP_SCATTER_CORNER",
             "(of the approach speed)"),
     _spread("flat", "the same for landings within 15 deg of flat and two contacts at once", "FP_SCATTER_FLAT",
             "(of the approach speed)"),
@@ -401,18 +404,36 @@ _SPREADS = (
             "sqrt(g R)", _free_fall_speed),
     _spread("flat_floor", "the same for flat landings", "FP_SCATTER_FLAT_FLOOR", "sqrt(g R)", _free_fall_speed),
 )
+# The speed term's form, not its size: sd = spread sqrt(g R) (u / sqrt(g R))^power, both kinds.
+# 1 (the null value, today's law) is sd = spread u; a scale on the law leaves it as it is.
+_POWER = ConfigKey("scatter", "power", 1.0, "", low=0.0, high=MAX_POWER, slot="FP_SCATTER_POWER",
+                   help="the power of the approach speed in the spread term, both kinds (1: spread u; 2: fast impacts scatter more)")
+
+
+def scatter_spread_keys(kind=None):
+    """The [scatter] keys a factor on the law multiplies (spreads and floors), of one landing
+    kind (its spread, then its floor) or of all, kind by kind."""
+    kinds = SCATTER_KINDS if kind is None else (kind,)
+    return tuple(name for k in kinds for name in (k, f"{k}_floor"))
+
+
+def scatter_law_keys():
+    """Every [scatter] key of the law itself (spreads, floors, then its form), not draws or seed."""
+    return scatter_spread_keys() + (_POWER.name,)
+
 
 # Random laws around the deterministic one: declared like effects (keys, units, ranges, null
 # values, kernel slots, signature), but never a fit's or a diagnosis's candidate
 NOISE_MODELS = (
     Effect(
         "scattered_impacts", "noise",
-        "each impact's velocity jump scattered around the deterministic law: a Gaussian of sd min(sqrt((spread u)^2 + "
-        "(floor sqrt(g R))^2), u) per component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed "
+        "each impact's velocity jump scattered around the deterministic law: a Gaussian of sd min(sqrt((spread sqrt(g R) "
+        "(u / sqrt(g R))^power)^2 + (floor sqrt(g R))^2), u) per component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed "
         "(docs/physics.md, \"Scattered impacts\"); a sweep rolls each start `draws` times on streams of `seed`",
         params=tuple(param for _, param in _SPREADS),
         config_keys=(
             *(key for key, _ in _SPREADS),
+            _POWER,
             ConfigKey("scatter", "draws", 1, "", low=1, high=MAX_DRAWS, help="rolls per start of a sweep (> 1: a probability sweep)"),
             ConfigKey("scatter", "seed", 0, "", low=0, high=MAX_SEED, slot="FP_STREAM_SEED", help="the random streams' seed"),
         ),

@@ -6,7 +6,7 @@ than any single number. The kernel is compiled (or loaded) before the first time
     python scripts/bench_probability.py [--num 512] [--draws 64] [--workers 2] [--repeat 3]
         [--spreads configs/scatter_real.toml] [--config configs/fig08.toml]
 
-The law ([scatter] corner, corner_floor, flat, flat_floor) is that of real bounces, read from --spreads.
+The law (the [scatter] law keys of the effect registry) is that of real bounces, read from --spreads.
 """
 
 import argparse
@@ -17,9 +17,10 @@ import time
 from pathlib import Path
 
 from dice_sweep.config import load_config
+from dice_sweep.effects import scatter_law_keys
 from dice_sweep.sweep import SweepJob, run_sweep
 
-LAW_KEYS = ("corner", "corner_floor", "flat", "flat_floor")  # what the --spreads file gives
+LAW_KEYS = scatter_law_keys()  # what the --spreads file gives: spreads, floors and the power
 TARGET_SECONDS = 60.0  # issue 31 item 5, at 512 x 512, 64 draws, 2 cores
 
 

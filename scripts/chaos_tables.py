@@ -8,8 +8,8 @@ Public API only. ``make chaos`` runs them all.
 
     python scripts/chaos_tables.py validation|sides|walls|time_step|contact|refine|control|scatter [--workers N] [--num N]
 
-``scatter`` reads the law of real bounces from configs/scatter_real.toml ([scatter] corner,
-corner_floor, flat, flat_floor, draws, seed) and sweeps Figs 8, 9 and 11 with it (probability
+``scatter`` reads the law of real bounces from configs/scatter_real.toml ([scatter] law keys
+of the effect registry, draws, seed) and sweeps Figs 8, 9 and 11 with it (probability
 maps, docs/chaos.md).
 """
 
@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dice_sweep import effects as effect_registry
 from dice_sweep.chaos import (
     SMOOTH_BOUNDARY_SBB,
     basin_entropy,
@@ -328,11 +329,13 @@ def control_table(runner, args):
     write_table("control", markdown + footer(f"python scripts/chaos_tables.py control --num {runner.num}", started, runner=runner))
 
 
-SCATTER_SCALED = ("corner", "corner_floor", "flat", "flat_floor")  # the keys a scale multiplies
+SCATTER_SCALED = effect_registry.scatter_spread_keys()  # the keys a scale multiplies, kind by kind: spread, floor
 
 
 def scatter_overrides(scatter, scale=1.0):
+    """--set lines of the law at ``scale`` times its spreads and floors, its form (power) as it is."""
     return [*(f"scatter.{key}={scale * getattr(scatter, key)!r}" for key in SCATTER_SCALED),
+            *(f"scatter.{key}={getattr(scatter, key)!r}" for key in effect_registry.scatter_law_keys() if key not in SCATTER_SCALED),
             f"scatter.draws={scatter.draws}", f"scatter.seed={scatter.seed}"]
 
 
@@ -353,16 +356,17 @@ def scatter_table(runner, args):
                 draw_sweep_file(sweep.path, FIGURES / f"chaos_scatter_{name}.png", dpi=80)
             rows.append([
                 f"{name} (n = {sweep.sides})", f"{scale_num} x {scale_num}", sweep.draws,
-                ", ".join(f"{scale * getattr(scatter, key):.4f}" for key in SCATTER_SCALED),
+                ", ".join([f"{scale * getattr(scatter, key):.4f}" for key in SCATTER_SCALED]
+                          + [f"{getattr(scatter, key):g}" for key in effect_registry.scatter_law_keys() if key not in SCATTER_SCALED]),
                 f"{100 * p.predictable:.1f} % [{100 * low:.1f}, {100 * high:.1f}]",
                 f"{sweep.probability[:-1].max(axis=0).mean():.3f}",
                 f"{p.basin_entropy:.3f} ({p.basin_entropy_corrected:.3f})", f"{math.log(sweep.sides):.3f}",
                 f"{100 * p.no_answer:.2f} %", f"{100 * same:.1f} %" if scale_num == num else "",
             ])
-    header = ["map", "pixels", "draws M", "corner: spread, floor; flat: spread, floor", "predictable: p >= 0.9 [range from the M draws]",
+    header = ["map", "pixels", "draws M", "corner: spread, floor; flat: spread, floor; power", "predictable: p >= 0.9 [range from the M draws]",
               "mean p(most likely)", "basin entropy, nats (Miller-Madow)", "fair die ln n", "no answer",
               "most likely side = deterministic side"]
-    keys = ", ".join(f"{key} = {getattr(scatter, key):.4g}" for key in SCATTER_SCALED)
+    keys = ", ".join(f"{key} = {getattr(scatter, key):.4g}" for key in effect_registry.scatter_law_keys())
     source = (f"\n\nThe law from `{SCATTER_CONFIG.relative_to(ROOT)}` ([scatter] {keys}; draws = {scatter.draws}, "
               f"seed = {scatter.seed}; floors in sqrt(g R) of each die); rows at "
               f"{' and '.join(f'{k:g}' for k in SCATTER_SCALES)} times the spreads and floors at half the resolution.")

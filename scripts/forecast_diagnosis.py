@@ -1,9 +1,10 @@
 """Why forecasts from flight 1 are overconfident, measured on the SELECTION tracks only (issue 31).
 
-    python scripts/forecast_diagnosis.py residuals   # (a) impact residuals against the law, by impact / speed / kind
+    python scripts/forecast_diagnosis.py residuals [--power 1]  # (a) impact residuals against the law, by impact / speed / kind
     python scripts/forecast_diagnosis.py flights     # (b) the flight-K states: frames, reduced chi-square, sds
     python scripts/forecast_diagnosis.py calibration [--members 500] [--scale S]  # forecasts of the selection tracks, every K
     python scripts/forecast_diagnosis.py scale       # fit_scatter_scale on the selection tracks -> out/forecast/<fit>_scaled.json
+    python scripts/forecast_diagnosis.py release_width [--law ...]  # the K = 0 log skill at every factor on the law
 
 The fit is the cross-fitted diagnose's held-out model (out/measured/report.json, or --fit):
 fold 0's model, chosen and fitted on fold 1's tracks, which are the selection tracks here; the
@@ -40,21 +41,25 @@ def context(args):
 
 
 def law_variance(kind, u, law, speed):
-    """The law's per-component variance ((m/s)^2) at approach u, capped as the kernel caps it."""
-    s, f = law[kind]["value"] or 0.0, (law[kind]["floor"] or 0.0) * speed
-    return min(s * s * u * u + f * f, u * u)
+    """The law's per-component variance ((m/s)^2) at approach u (m/s), capped as the kernel caps it."""
+    from dice_sweep.measured.scatter import jump_sd
+
+    keys = {kind: law[kind]["value"] or 0.0, f"{kind}_floor": law[kind]["floor"] or 0.0, "power": law.get("power", {}).get("value", 1.0)}
+    return (jump_sd(keys, kind, u / speed) * speed) ** 2
 
 
 def residuals(args):
     from dice_sweep.measured.impacts import find_impacts
-    from dice_sweep.measured.scatter import ImpactResidual, estimate_spreads, impact_residuals
+    from dice_sweep.measured.scatter import KINDS, ImpactResidual, estimate_spreads, impact_residuals
 
     cfg, source, select_set, table, sigma = context(args)
     speed = math.sqrt(source.params.get("g", cfg.world.g) * cfg.die.circumradius)
     cache = OUT / f"selection_residuals_{Path(args.fit).stem}.json"
     if cache.exists():  # the residuals of the same fit and tracks (delete it after changing either)
         saved = json.loads(cache.read_text())
-        rows, found = [ImpactResidual(**r) for r in saved["rows"]], {int(k): v for k, v in saved["found"].items()}
+        rows = [ImpactResidual(**{**r, "components2": tuple(r.get("components2", ())), "noise_components2": tuple(r.get("noise_components2", ()))})
+                for r in saved["rows"]]
+        found = {int(k): v for k, v in saved["found"].items()}
     else:
         rows = impact_residuals(select_set.tracks, cfg, source.effects, source.params, sigma=sigma, table=table, seed=source.seed)
         found = {}
@@ -63,13 +68,13 @@ def residuals(args):
                                  table=table, g=source.params.get("g", cfg.world.g)))
             for k in range(n):
                 found[min(k, 4)] = found.get(min(k, 4), 0) + 1
-    law = estimate_spreads(rows, speed=speed, seed=source.seed)
+    law = estimate_spreads(rows, speed=speed, seed=source.seed, power=args.power)
     OUT.mkdir(parents=True, exist_ok=True)
     cache.write_text(json.dumps({"rows": [dataclasses.asdict(r) for r in rows], "law": law, "found": found}, default=float))
-    if args.law:  # another law to test against the same residuals: corner, corner_floor, flat, flat_floor
-        c, cf, f, ff = (float(v) for v in args.law.split(","))
-        law = {"corner": {"value": c, "floor": cf}, "flat": {"value": f, "floor": ff}}
-    print(json.dumps({"law": {k: {key: law[k].get(key) for key in ("value", "ci95", "floor", "floor_ci95", "impacts")} for k in law}}))
+    if args.law:  # another law to test against the same residuals: corner, corner_floor, flat, flat_floor[, power]
+        c, cf, f, ff, *p = (float(v) for v in args.law.split(","))
+        law = {"corner": {"value": c, "floor": cf}, "flat": {"value": f, "floor": ff}, "power": {"value": p[0] if p else 1.0}}
+    print(json.dumps({"law": {k: {key: law[k].get(key) for key in ("value", "ci95", "floor", "floor_ci95", "impacts") if key in law[k]} for k in law}}))
     ratio = np.array([((r.residual2 - r.noise2) / 3.0) / law_variance(r.kind, r.approach, law, speed) for r in rows])
     index = np.array([min(r.impact, 4) for r in rows])
     u = np.array([r.approach for r in rows]) / speed
@@ -80,16 +85,27 @@ def residuals(args):
         if not got.size:
             return {"impacts": 0}
         boot = np.random.default_rng(0).choice(got, size=(2000, got.size)).mean(axis=1)
+        # a Gaussian jump's |r|^2 is the law's variance times chi-square(3) / 3: mean / median 1.27
         return {"impacts": int(got.size), "mean_ratio": round(float(got.mean()), 3),
-                "ci95": [round(float(v), 3) for v in np.quantile(boot, [0.025, 0.975])], "median_u_sqrtgR": round(float(np.median(u[mask])), 2)}
+                "ci95": [round(float(v), 3) for v in np.quantile(boot, [0.025, 0.975])], "median_ratio": round(float(np.median(got)), 3),
+                "median_u_sqrtgR": round(float(np.median(u[mask])), 2)}
 
     for k in range(5):
         print(json.dumps({"by_impact": k if k < 4 else "4+", "found": found.get(k, 0), **group(index == k)}))
     for low, high in ((0, 0.5), (0.5, 1.0), (1.0, 1.5), (1.5, 2.5), (2.5, 99)):
         print(json.dumps({"by_u_sqrtgR": [low, high], **group((u >= low) & (u < high))}))
-    for name in ("corner", "flat"):
+    for name in KINDS:
         for first in (True, False):
             print(json.dumps({"kind": name, "first_impact": first, **group((kind == name) & ((index == 0) == first))}))
+    # each component's share: the law is isotropic in (vx, vy, sqrt(I/M) omega), so 1 each if that is right
+    parts = np.array([np.subtract(r.components2, r.noise_components2) if r.components2 else np.full(3, np.nan) for r in rows])
+    variance = np.array([law_variance(r.kind, r.approach, law, speed) for r in rows])
+    for name in KINDS:
+        for first in (True, False):
+            mask = (kind == name) & ((index == 0) == first)
+            if mask.any():
+                print(json.dumps({"kind": name, "first_impact": first, "component_ratio_vx_vy_spin": [
+                    round(float(v), 2) for v in np.nanmean(parts[mask], axis=0) / variance[mask].mean()]}))
 
 
 def flights(args):
@@ -110,16 +126,19 @@ def flights(args):
 
 
 def calibration(args):
+    from dice_sweep.effects import scatter_spread_keys
     from dice_sweep.measured import forecast as fc
+    from dice_sweep.measured.scatter import KINDS
 
     cfg, source, select_set, table, sigma = context(args)
     if source.scatter is None:
         law = json.loads((OUT / f"selection_residuals_{Path(args.fit).stem}.json").read_text())["law"]
-        source = dataclasses.replace(source, scatter={name: (law[kind][key] or 0.0) for kind in ("corner", "flat")
-                                                      for key, name in (("value", kind), ("floor", f"{kind}_floor"))})
+        source = dataclasses.replace(source, scatter={**{name: (law[kind][key] or 0.0) for kind in KINDS
+                                                         for key, name in zip(("value", "floor"), scatter_spread_keys(kind))},
+                                                      "power": law.get("power", {}).get("value", 1.0)})
     if args.law:
-        c, cf, f, ff = (float(v) for v in args.law.split(","))
-        source = dataclasses.replace(source, scatter={"corner": c, "corner_floor": cf, "flat": f, "flat_floor": ff})
+        c, cf, f, ff, *p = (float(v) for v in args.law.split(","))
+        source = dataclasses.replace(source, scatter={"corner": c, "corner_floor": cf, "flat": f, "flat_floor": ff, "power": p[0] if p else 1.0})
     source = dataclasses.replace(source, scatter=fc.scaled_scatter(source.scatter, args.scale))
     observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
     prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
@@ -148,19 +167,38 @@ def scale(args):
     print(json.dumps({k: v for k, v in found.items() if k != "rule"}))
 
 
+def release_width(args):
+    """How good the forecast from the release can get by the law's width alone, on the selection
+    tracks: the factor on the law (the fit's, or --law) whose forecasts from flight 0 alone have
+    the best log score, and that score's skill at every factor (in-sample: an optimistic bound
+    for a law of this form)."""
+    from dice_sweep.measured import forecast as fc
+
+    cfg, source, select_set, table, sigma = context(args)
+    if args.law:
+        c, cf, f, ff, *p = (float(v) for v in args.law.split(","))
+        source = dataclasses.replace(source, scatter={"corner": c, "corner_floor": cf, "flat": f, "flat_floor": ff, "power": p[0] if p else 1.0})
+    observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
+    prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
+    found = fc.fit_scatter_scale(prepared, cfg, source, (0,), sigma=sigma, observed=observed, members=args.members, workers=2)
+    print(json.dumps({"law": source.scatter, "best_factor": found["value"], "ci95": found["ci95"], "tracks": found["pairs"],
+                      "log_skill_by_factor": {f"{g:g}": round(v + math.log(cfg.die.sides), 4) for g, v in zip(found["grid"], found["mean_log_score"])}}))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("what", choices=("residuals", "flights", "calibration", "scale"))
+    parser.add_argument("what", choices=("residuals", "flights", "calibration", "scale", "release_width"))
     parser.add_argument("--fit", default=str(ROOT / "out" / "measured" / "report.json"))
     parser.add_argument("--members", type=int, default=500)
     parser.add_argument("--scale", type=float, default=1.0)
-    parser.add_argument("--law", help="test this law instead of the fit's: corner,corner_floor,flat,flat_floor")
+    parser.add_argument("--law", help="test this law instead of the fit's: corner,corner_floor,flat,flat_floor[,power]")
+    parser.add_argument("--power", type=float, help="residuals: estimate the law at this power (default: the power estimated too)")
     parser.add_argument("--flights", default="0,1,2,3", help="calibration: the forecast points")
     args = parser.parse_args()
     if not DATA.exists():
         print(f"skipped: {DATA} not found")
         return 0
-    {"residuals": residuals, "flights": flights, "calibration": calibration, "scale": scale}[args.what](args)
+    {"residuals": residuals, "flights": flights, "calibration": calibration, "scale": scale, "release_width": release_width}[args.what](args)
     return 0
 
 

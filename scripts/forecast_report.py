@@ -67,20 +67,27 @@ def the_fit(args):
     return path
 
 
+FORM_POWERS = (1.0, 2.0)  # powers tried by the outcomes besides the one the residuals chose
+
+
 def with_scatter(args, fit):
     """The fit JSON with the stochastic impact law (``scatter``) and its scale: the fit itself
     when it has both, else a copy in out/forecast/ with what is missing estimated on the fit's
     selection tracks only (for a cross-fitted diagnose, the half its held-out model was fitted
-    on): the spreads by dice_sweep.measured.scatter, then one factor on them all by the
-    selection tracks' forecasts from every flight (dice_sweep.measured.forecast.fit_scatter_scale)."""
+    on): the law by dice_sweep.measured.scatter (its power chosen by the clean impacts'
+    likelihood), then, for that power and each of FORM_POWERS (the law's best spreads and floors
+    at each), one factor on the spreads and floors by the selection tracks' forecasts from every
+    flight (dice_sweep.measured.forecast.fit_scatter_scale); the power and factor whose summed
+    log score is best are kept, every candidate in ``scatter_form``."""
     data = json.loads(Path(fit).read_text())
     if data.get("scatter") and data.get("scatter_scale"):
         return Path(fit)
     from dice_sweep.config import load_config
+    from dice_sweep.effects import SCATTER_KINDS
     from dice_sweep.measured import forecast as fc
     from dice_sweep.measured.noise import tracking_noise
     from dice_sweep.measured.report import jsonable
-    from dice_sweep.measured.scatter import fitted_scatter
+    from dice_sweep.measured.scatter import fitted_scatter, scatter_section
     from dice_sweep.measured.tracks import load_tracks
 
     def say(line):
@@ -89,18 +96,38 @@ def with_scatter(args, fit):
     cfg = load_config(CONFIG)
     source = fc.parse_fit(data, fit, cfg, 0.3, 0)
     tracks = load_tracks(args.data, sides=cfg.die.sides, circumradius=cfg.die.circumradius, angle="auto")
-    if not data.get("scatter"):
+    if not (data.get("scatter") or {}).get("power", {}).get("by_power"):  # none, or one from before the power existed
         data["scatter"] = fitted_scatter(tracks, cfg, source.effects, source.params, confirm_fraction=source.confirm_fraction,
                                          seed=source.seed, log=say)
-        source = fc.parse_fit(data, fit, cfg, 0.3, 0)
     table, _, sigma = tracking_noise(tracks, cfg)
     select_set, _ = tracks.split(source.confirm_fraction, source.seed)
     observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
     prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
     bounces = [k for k, count in enumerate(fc.flight_counts(prepared)) if count >= fc.MIN_BOUNCE_TRACKS]
-    data["scatter_scale"] = fc.fit_scatter_scale(prepared, cfg, source, bounces, sigma=sigma, observed=observed,
-                                                    workers=len(os.sched_getaffinity(0)), log=say)
-    say(f"scatter scale on the selection tracks: {data['scatter_scale']['value']:.3f} {data['scatter_scale']['ci95']}")
+    law = data["scatter"]
+    residual_power = law["power"]["value"]
+    candidates = []
+    for power in sorted({residual_power, *FORM_POWERS}):
+        at = law["power"]["by_power"][f"{power:g}"]
+        spreads = {**{name: at[kind][key] for kind in SCATTER_KINDS for key, name in zip(("value", "floor"), (kind, f"{kind}_floor"))},
+                   "power": power}
+        found = fc.fit_scatter_scale(prepared, cfg, dataclasses.replace(source, scatter=spreads), bounces, sigma=sigma, observed=observed,
+                                     workers=len(os.sched_getaffinity(0)), log=say)
+        best = max(found["mean_log_score"]) * found["pairs"]
+        say(f"power {power:g}: scale {found['value']:.3f} {found['ci95']}, summed log score at the best grid factor {best:.2f}")
+        candidates.append({"power": power, "law": at, "scale": found, "summed_log_score": best})
+    chosen = max(candidates, key=lambda c: c["summed_log_score"])
+    for kind in SCATTER_KINDS:
+        law[kind] = {**law[kind], **chosen["law"][kind]}  # the chosen power's spreads and floors (intervals: the residuals' power)
+    law["power"] = {**law["power"], "value": chosen["power"], "from_residuals": residual_power}
+    law["toml"] = scatter_section(law)  # the [scatter] section of the law kept (unscaled, as the JSON's spreads)
+    data["scatter_scale"] = chosen["scale"]
+    data["scatter_form"] = {"candidates": [{k: c[k] for k in ("power", "law", "summed_log_score")} | {"scale": c["scale"]["value"],
+                                            "scale_ci95": c["scale"]["ci95"]} for c in candidates], "chosen_power": chosen["power"],
+                            "rule": "the power of the clean impacts' likelihood and each of " + ", ".join(f"{p:g}" for p in FORM_POWERS)
+                                    + ", each with its best spreads and floors and its own scale; the best summed log score of the "
+                                    "selection tracks' forecasts (at the best grid factor) chooses; held-out tracks take no part"}
+    say(f"law's power chosen by the selection tracks' outcomes: {chosen['power']:g}, scale {chosen['scale']['value']:.3f}")
     path = OUT / "fit_with_scatter.json"
     path.write_text(json.dumps(jsonable(data), indent=1))
     return path
@@ -118,7 +145,7 @@ def timed_forecast(args, fit):
     return seconds, json.loads((OUT / "forecast.json").read_text()), command, [list(load), list(os.getloadavg())]
 
 
-def inflation_scan(args, fit, factors=SCAN):
+def inflation_scan(args, fit, report, factors=SCAN):
     """Log scores from the release with every release state's covariance multiplied by f^2:
     the mean on the selection tracks for each f, and on the held-out tracks at the best one."""
     from dice_sweep.app.forecast import read_fit_file
@@ -159,7 +186,23 @@ def inflation_scan(args, fit, factors=SCAN):
     sd = np.median([np.sqrt(np.diag(f.cov)) for f in held], axis=0)
     return {"rows": rows, "best": best["factor"], "held_out": {k: held_scores[k] for k in ("log_score", "log_skill", "brier", "brier_skill",
                                                                                              "calibration", "mean_entropy", "n_tracks")},
-            "sd": sd.tolist(), "members": args.scan_members}
+            "sd": sd.tolist(), "members": args.scan_members, "ceiling": model_free(cfg, select, held, observed, report)}
+
+
+def model_free(cfg, select, held, observed, report):
+    """The k-nearest-neighbour forecast from the release states (no physics), trained on the
+    selection tracks' flight-0 states and sides, scored on the held-out tracks the report's
+    ensemble forecast from the release, paired with it; fc.neighbour_forecast's dict without
+    its arrays."""
+    from dice_sweep.measured import forecast as fc
+
+    train = [f for f in select if observed.get(f.traj) is not None]
+    ensemble = {t["traj"]: t["probabilities"] for t in report["scores"]["tracks"]}
+    test = [f for f in held if f.traj in ensemble]
+    got = fc.neighbour_forecast(np.array([f.state for f in train]), np.array([observed[f.traj] for f in train]),
+                                np.array([f.state for f in test]), np.array([observed[f.traj] for f in test]), cfg,
+                                reference=np.array([ensemble[f.traj] for f in test]))
+    return {key: value for key, value in got.items() if key not in ("probabilities", "reliability")}
 
 
 def chaos_rows():
@@ -217,12 +260,7 @@ def _bins_text(entry):
                      f"{b['observed_frequency']:.3f} [{b['ci95'][0]:.3f}, {b['ci95'][1]:.3f}])" for b in _bins_off(entry))
 
 
-def _law_sd(law, kind, u):
-    """The law's sd per component (in sqrt(g R)) at approach speed u (in sqrt(g R)), capped at u."""
-    return min(math.hypot(law.get(kind, 0.0) * u, law.get(f"{kind}_floor", 0.0)), u)
-
-
-def answer(report, scan, chaos):
+def answer(report, scan, chaos, form=None):
     """The answer on real dice, in numbers, from the report."""
     s = report["scores"]
     by = {b["from_bounce"]: b for b in s["by_bounce"]}
@@ -235,8 +273,10 @@ def answer(report, scan, chaos):
         lines += ["**Warning (from the command):** " + "; ".join(report["warnings"]) + ".", ""]
     lines += [
         f"**From the release, with bounces that scatter as real ones do, the forecast is "
-        + ("calibrated" if calibrated else "not calibrated") + " and a little better than chance.** "
-        f"The ensemble draws every impact of every member from the stochastic impact law fitted on the selection tracks "
+        + ("calibrated" if calibrated else "not calibrated")
+        + (" and a little better than chance.** " if s["log_skill"]["ci95"][0] > 0.0 else
+           " and no better than chance.** " if s["log_skill"]["ci95"][1] >= 0.0 else " and worse than chance.** ")
+        + f"The ensemble draws every impact of every member from the stochastic impact law fitted on the selection tracks "
         f"([scatter] {law}; docs/measured_method.md, \"The scatter of real bounces\"). On the {s['n_tracks']} held-out drops its "
         f"calibration z is {s['calibration']['log_score_z']:.1f} (log) and {s['calibration']['brier_z']:.1f} (Brier)"
         + (", every well-filled reliability bin holds its mean prediction in its 95 % interval" if _bins_ok(s) else
@@ -244,19 +284,23 @@ def answer(report, scan, chaos):
         + f"; its log skill over 1/n is {_ci(s['log_skill'])} nats of a possible ln 4 = 1.386 (Brier skill {_ci(s['brier_skill'])}), "
         f"its most likely side right {_pct(s['share_correct_most_likely'])} against 25 % by chance (the deterministic forecast "
         f"{_pct(s['share_correct_deterministic'])}, with a log score of {_ci(s['log_score_deterministic'])}). Mean entropy "
-        f"{s['mean_entropy']:.2f} nats of ln 4 = 1.39: **the release of a real drop carries about "
-        f"{100 * s['log_skill']['value'] / math.log(4):.0f} % of the information that would fix its side.**",
+        f"{s['mean_entropy']:.2f} nats of ln 4 = 1.39"
+        + (f": **the release of a real drop carries about {100 * s['log_skill']['value'] / math.log(4):.0f} % of the information "
+           "that would fix its side.**" if s["log_skill"]["ci95"][0] > 0.0 else
+           ": **this forecast draws no measurable information about the side from the release.**"),
         "",
     ]
     scale = report["fit"].get("scatter_scale")
     from dice_sweep.config import load_config
+    from dice_sweep.measured.scatter import jump_sd
 
     die = load_config(CONFIG)
     speed = math.sqrt(report["fit"]["params"].get("g", die.world.g) * die.die.circumradius)
     if recal:
         goal = GOALS["blend_skill_k0"]
         lines += [
-            ("No blend is needed" if calibrated else "A blend does not calibrate it either" if not _calibrated(recal) else "The blend is")
+            ("No blend is needed" if calibrated and recal["weight_uniform"] < 0.05 else "The blend is not needed for calibration"
+             if calibrated else "A blend does not calibrate it either" if not _calibrated(recal) else "The blend is")
             + f": the blend with the uniform forecast that the selection tracks choose has w = "
             f"{recal['weight_uniform']:.2f} and scores {_ci(recal['log_skill'])} (the comparison row of the report). Without the "
             f"stochastic law (issue 18's forecast, on the loop's earlier fit) the raw ensemble scored -2.160 [-2.725, -1.614] at z = -77 "
@@ -272,8 +316,31 @@ def answer(report, scan, chaos):
             + " What bounds it: the spread of the first impact alone, amplified by the map (below), leaves the members of one release "
             f"on all four sides in nearly equal shares (mean largest probability {s['mean_p_max']:.2f}); a sharper forecast would "
             f"need the first bounce to scatter less than the law says (a corner landing at the first impact's typical 3.9 sqrt(gR): "
-            f"{_law_sd(sc, 'corner', 3.9) * speed * 100:.0f} cm/s per component; a flat one {_law_sd(sc, 'flat', 3.9) * speed * 100:.0f} "
+            f"{jump_sd(sc, 'corner', 3.9) * speed * 100:.0f} cm/s per component; a flat one {jump_sd(sc, 'flat', 3.9) * speed * 100:.0f} "
             "cm/s), i.e. a better impact law, not a better tracker (the release state's own uncertainty is under a cell of the map).",
+            "",
+        ]
+    ceiling = scan.get("ceiling") if scan else None
+    if ceiling:
+        goal = GOALS["blend_skill_k0"]
+        over = ceiling["log_skill_over_reference"]
+        lines += [
+            "**What the release states tell without any physics.** A model-free forecast from the release (k nearest "
+            f"neighbours among the {ceiling['n_train']} selection tracks' flight-0 states in the die's own scales, phi0 folded into "
+            "one quarter turn and the sides renamed to match; the initial values used, k and the pseudo-count chosen by their "
+            f"leave-one-out log score on the selection tracks alone, the smoothest within one standard error of the best: "
+            f"{', '.join(ceiling['features'])}, k = {ceiling['k']}, {ceiling['smoothing']:g} per side; "
+            "`dice_sweep.measured.forecast.neighbour_forecast`) scores the same "
+            f"{ceiling['n_tracks']} held-out drops at a log skill of {_ci(ceiling['log_skill'])} nats, its most likely side right "
+            f"{_pct(ceiling['share_correct_most_likely'])}, calibration z {ceiling['calibration']['log_score_z']:.1f}. The physics "
+            f"ensemble's log score less the model-free one's, paired over the same drops: {-over['value']:.3f} "
+            f"[{-over['ci95'][1]:.3f}, {-over['ci95'][0]:.3f}] nats per drop. From {ceiling['n_train']} training drops a learner "
+            "without the physics finds "
+            + ("no skill" if ceiling["log_skill"]["ci95"][0] <= 0.0 else "some skill")
+            + (", less than the ensemble's" if over["ci95"][1] < 0.0 else ", not told apart from the ensemble's" if over["ci95"][0] <= 0.0
+               else ", more than the ensemble's: the physics misses something the release states tell")
+            + f". It is no upper bound (a better learner, or ten times the drops, could find more); the blend's {goal} nats "
+            "(issue 31) was on the loop's earlier fit and split (147 held-out drops). docs/dev/law31.md has the numbers of the law's form and this comparison.",
             "",
         ]
     if scale:
@@ -283,6 +350,9 @@ def answer(report, scan, chaos):
             f"factor whose forecasts of the {scale['tracks']} selection tracks from flights {', '.join(map(str, scale['bounces']))} "
             f"({scale['pairs']} track-flight pairs) have the best summed log score (a proper score; held-out tracks take no part)"
             + (", at the end of the factors tried" if scale["at_grid_end"] else "")
+            + ("" if not form else ". The law's form, its power of the approach speed, was chosen the same way: "
+               + "; ".join(f"power {c['power']:g} (its own factor {c['scale']:.3f}): summed log score {c['summed_log_score']:.2f}"
+                           for c in form["candidates"]) + f"; kept: {form['chosen_power']:g}")
             + ". docs/dev/forecast_flight1.md says why the forecast from flight 1 was overconfident with the loop's earlier fit "
             "(its corner law's floor, which the clean impacts hardly pin down) and what was measured on the selection tracks.",
             "",
@@ -366,7 +436,8 @@ def write_doc(report, seconds, command, scan, fit, load=None):
              f"tracks, every flight), {total['map']:.0f} s for the {m['size'][0]} x {m['size'][1]} map, the rest starting Python and "
              "writing. It includes every forecast point of by_bounce and the selection tracks of the recalibration, not only K = 0.")
     text = intro.format(fit=fit.relative_to(ROOT) if fit.is_relative_to(ROOT) else fit)
-    text += "\n## The answer on real dice\n\n" + answer(report, scan, chaos_rows())
+    form = json.loads(Path(fit).read_text()).get("scatter_form")
+    text += "\n## The answer on real dice\n\n" + answer(report, scan, chaos_rows(), form)
     text += ("\n| skill against the flight forecast from | reliability, from the release |\n|---|---|\n"
              "| ![skill](figures/forecast_skill.png) | ![reliability](figures/forecast_reliability.png) |\n\n"
              "![release map](figures/forecast_map.png)\n\n"
@@ -406,7 +477,7 @@ def main():
     (OUT / "bench.json").write_text(json.dumps({"seconds": seconds, "command": command, "fit": str(fit), "load": load}))
     for name, target in FIGURES.items():
         shutil.copyfile(OUT / "png" / name, ROOT / "docs" / "figures" / target)
-    scan = inflation_scan(args, fit)
+    scan = inflation_scan(args, fit, report)
     (OUT / "scan.json").write_text(json.dumps(scan, indent=1))
     write_doc(report, seconds, command, scan, fit, load)
     s = report["scores"]

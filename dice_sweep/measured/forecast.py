@@ -93,7 +93,7 @@ class FitSource:
     seed: int
     data_path: object  # the data file the fit was made on, if the JSON says
     angle_reading: object
-    # the stochastic impact law's spreads written with the fit ({"corner": s, "flat": s, "corner_floor": f, ...},
+    # the stochastic impact law written with the fit ({"corner": s, "flat": s, "corner_floor": f, ..., "power": p},
     # dice_sweep.measured.scatter), or None: the ensemble's impacts follow the fitted law exactly
     scatter: object = None
     scatter_scale: object = None  # the factor already applied to ``scatter`` (fit_scatter_scale's dict), or None
@@ -164,28 +164,34 @@ def parse_fit(data, path, cfg, confirm_fraction, seed):
 
 
 def _scatter_of(data, path):
-    """{"corner": s, "flat": s, "corner_floor": f, "flat_floor": f} from a fit JSON's ``scatter``,
-    times the JSON's ``scatter_scale`` when it has one (:func:`fit_scatter_scale`); None without one."""
+    """{"corner": s, "flat": s, "corner_floor": f, "flat_floor": f, "power": p} from a fit JSON's
+    ``scatter`` (a JSON from before the power existed: p = 1, the law it was estimated with),
+    the spreads and floors times the JSON's ``scatter_scale`` when it has one
+    (:func:`fit_scatter_scale`); None without one."""
     record = data.get("scatter")
     if record is None:
         return None
     spreads = {}
-    for kind in ("corner", "flat"):
+    for kind in registry.SCATTER_KINDS:
         entry = record.get(kind) if isinstance(record, dict) else None
-        for key, name in (("value", kind), ("floor", f"{kind}_floor")):
+        for key, name in zip(("value", "floor"), registry.scatter_spread_keys(kind)):
             value = entry.get(key, 0.0 if key == "floor" else None) if isinstance(entry, dict) else None
             if value is None and isinstance(entry, dict) and entry.get("value") is None:
                 value = 0.0  # too few impacts of that kind to estimate it from
             if not _number(value) or not 0.0 <= value <= MAX_SCATTER:
                 raise _fit_error(path, f"scatter.{kind}.{key} is not in [0, {MAX_SCATTER:g}]")
             spreads[name] = float(value)
+    power = record.get("power", {"value": 1.0}) if isinstance(record, dict) else None
+    power = power.get("value") if isinstance(power, dict) else None
+    if not _number(power) or not 0.0 <= power <= registry.MAX_POWER:
+        raise _fit_error(path, f"scatter.power.value is not in [0, {registry.MAX_POWER:g}]")
     scale = _scale_of(data)
     if scale is not None:  # the factor fit_scatter_scale chose on the selection tracks
         value = scale.get("value") if isinstance(scale, dict) else None
         if not _number(value) or not 0.0 < value <= MAX_SCALE:
             raise _fit_error(path, f"scatter_scale.value is not in (0, {MAX_SCALE:g}]")
         spreads = scaled_scatter(spreads, value)
-    return spreads
+    return {**spreads, "power": float(power)}
 
 
 def _scale_of(data):
@@ -509,8 +515,10 @@ MAX_SCALE = 100.0  # a scale read from a fit JSON: above it every spread is at M
 
 
 def scaled_scatter(spreads, scale):
-    """The law's spreads and floors times ``scale``, each capped at MAX_SCATTER (None stays None)."""
-    return None if spreads is None else {key: min(value * scale, MAX_SCATTER) for key, value in spreads.items()}
+    """The law's spreads and floors times ``scale``, each capped at MAX_SCATTER; its form (the
+    power) as it is (None stays None)."""
+    scaled = set(registry.scatter_spread_keys())
+    return None if spreads is None else {key: min(value * scale, MAX_SCATTER) if key in scaled else value for key, value in spreads.items()}
 
 
 def _peak(x, y):
@@ -1076,3 +1084,72 @@ def markdown(report):
                   f"a drop's place is the side it rested on for {100 * m['drops_side_as_map']:.0f} % (the other initial values differ from drop to drop).",
                   "- A release state's standard deviation (median over drops): " + ", ".join(f"{v:.2f} cells in {name}" for name, v in m["release_sd_in_cells"].items()) + "."]
     return "\n".join(lines) + "\n"
+
+
+# The model-free forecast from the release (issue 31): how much the release states of the
+# selection tracks tell about the side, with no physics, as a measure of what any forecast from
+# the release could reach on these drops (not a bound: a better learner could do better)
+NEIGHBOURS = (5, 10, 20, 40, 80, 160, None)  # k tried (None: every training track, the sides' base rates)
+NEIGHBOUR_SMOOTHING = (0.25, 0.5, 1.0, 2.0)  # pseudo-counts per side tried
+# the initial values used, as columns of (x, y, phi, vx, vy, omega): x is left out (a table
+# without walls is the same everywhere), subsets tried because 250 tracks fill 5 dimensions thinly
+NEIGHBOUR_FEATURES = ((1, 2, 3, 4, 5), (2, 5), (1, 2, 5), (2, 4, 5), (1, 2, 4, 5))
+
+
+def folded_release(states, cfg, centre):
+    """(features in the die's own scales with phi folded about ``centre``, the quarter turns
+    m removed): a die turned by m turns of 2 pi / n rests on the side m higher (mod n)."""
+    states = np.array(states, dtype=float).reshape(-1, 6)
+    states[:, 2], turns = fold_phase(states[:, 2], cfg.die.sides, centre)
+    return states / natural_scales(cfg), turns
+
+
+def neighbour_probabilities(train, train_sides, test, n, k, smoothing, exclude_self=False):
+    """(tests, n) side probabilities: the sides of the k training points nearest each test point
+    (Euclidean), (count + smoothing) / (k + n smoothing); ``exclude_self``: test = train, each
+    point's own side left out (leave-one-out)."""
+    distance = np.sum((test[:, None, :] - train[None, :, :]) ** 2, axis=2)
+    if exclude_self:
+        np.fill_diagonal(distance, np.inf)
+    k = min(k, train.shape[0] - int(exclude_self))
+    nearest = np.argpartition(distance, k - 1, axis=1)[:, :k]
+    counts = one_hot(np.asarray(train_sides)[nearest].ravel(), n).reshape(len(test), k, n).sum(axis=1)
+    return probabilities(counts, smoothing)
+
+
+def neighbour_forecast(train_states, train_sides, test_states, test_sides, cfg, *, seed=0, draws=BOOTSTRAP, reference=None):
+    """A k-nearest-neighbour forecast of the test tracks' sides from their release states, with
+    no physics: trained on (train_states, train_sides) only (states (m, 6) true units, sides
+    0..n-1), its features, k and smoothing the ones with the best leave-one-out log score on
+    the training tracks, then scored on the test tracks (log skill over 1/n with a bootstrap
+    interval over test tracks, calibration, most likely side right; ``reference``: another
+    forecast's probabilities of the same test tracks, for the paired difference of log scores)."""
+    n = cfg.die.sides
+    centre = phase_centre(np.asarray(train_states)[:, 2], n)
+    train, train_turns = folded_release(train_states, cfg, centre)
+    test, test_turns = folded_release(test_states, cfg, centre)
+    folded_sides = (np.asarray(train_sides) + train_turns) % n
+    tried = []
+    for columns in NEIGHBOUR_FEATURES:
+        for k in (len(train) - 1 if k is None else k for k in NEIGHBOURS):
+            for smoothing in NEIGHBOUR_SMOOTHING:
+                loo = neighbour_probabilities(train[:, columns], folded_sides, train[:, columns], n, k, smoothing, exclude_self=True)
+                tried.append((log_scores(loo, folded_sides), columns, k, smoothing))
+    # the one-standard-error rule: of the choices whose leave-one-out score is within one
+    # standard error (paired, over tracks) of the best, the smoothest (most neighbours, then
+    # most pseudo-counts); the best alone would be picked partly for its luck
+    top = max(tried, key=lambda row: row[0].mean())[0]
+    near = [row for row in tried if top.mean() - row[0].mean() <= np.std(top - row[0]) / math.sqrt(len(top))]
+    scores, columns, k, smoothing = max(near, key=lambda row: (row[2], row[3]))
+    best_loo = float(scores.mean())
+    folded = neighbour_probabilities(train[:, columns], folded_sides, test[:, columns], n, k, smoothing)
+    # back to the test die's own side names: real side s is folded side s + m
+    prob = folded[np.arange(len(test))[:, None], (np.arange(n)[None, :] + test_turns[:, None]) % n]
+    observed = np.asarray(test_sides)
+    references = (("reference", np.asarray(reference)),) if reference is not None else ()
+    scores, _ = _scores(prob, observed, np.random.default_rng([seed, 3141]), draws, RELIABILITY_BINS, references)
+    right = prob.argmax(axis=1) == observed
+    boot = bootstrap_means(right[:, None], np.random.default_rng([seed, 3142]), draws)[:, 0]
+    return {**scores, "share_correct_most_likely": _entry(right.mean(), boot), "n_tracks": int(len(observed)),
+            "n_train": int(len(train)), "features": [STATE_COLUMNS[c] for c in columns], "k": int(k), "smoothing": float(smoothing),
+            "train_leave_one_out_log_skill": best_loo + math.log(n), "probabilities": prob}

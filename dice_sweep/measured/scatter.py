@@ -2,10 +2,11 @@
 spreads estimated from tracked drops, with 95 % intervals (issue 31).
 
 The model (docs/physics.md, "Scattered impacts"): each impact's velocity jump is the
-deterministic law's plus a Gaussian of standard deviation sigma u per component of
-(vx, vy, sqrt(I/M) omega), u the touching corner's approach speed, sigma = ``flat`` or
-``corner`` by the landing tilt. The estimator (docs/measured_method.md, "The scatter of real
-bounces"), per clean impact i of the tracks given (calibrate's impacts and cleanliness rules):
+deterministic law's plus a Gaussian of variance floor^2 + (sigma v (u / v)^p)^2 per
+component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed, v = sqrt(g R),
+sigma and floor by the landing tilt (``corner`` or ``flat``), the power p shared. The estimator
+(docs/measured_method.md, "The scatter of real bounces"), per clean impact i of the tracks
+given (calibrate's impacts and cleanliness rules):
 
 1. the state just before it (the free-flight fit of the frames before, followed to the table)
    is rolled by the kernel at the fitted parameters, deterministic, from BACKOFF before the
@@ -16,13 +17,16 @@ bounces"), per clean impact i of the tracks given (calibrate's impacts and clean
 2. the tracking noise's share of |r_i|^2, n_i, is measured by REPLICATES refits with
    Gaussian noise of the tracking sigma added to the frames: E|r'_i - r_i|^2 = n_i in the
    linear regime;
-3. impacts whose noise share alone is a spread above UNSTABLE are left out (counted); over
-   the impacts of a kind, (|r_i|^2 - n_i) / 3 = floor^2 + sigma^2 u_i^2 (E|r_i|^2 = 3 (floor^2
-   + sigma^2 u_i^2) + n_i) is fitted by least squares weighted by the inverse square of the
-   fitted variance; sigma = sqrt(max(sigma^2, 0)), the same for the floor;
-4. their 95 % intervals from BOOTSTRAP resamples of the tracks (the independent units), the
-   percentiles of sigma^2 and floor^2 taken to sigma the same way (an interval reaching below 0
-   holds 0: no scatter of that form is within the data).
+3. impacts whose noise share alone is a spread above UNSTABLE are left out (counted); the
+   rest's residual components are taken as Gaussian of variance floor^2 + sigma^2 v^2 (u_i /
+   v)^(2p) + n_i / 3, and floor, sigma of each kind (>= 0) by maximum likelihood at each power
+   p of POWERS, p the one whose summed likelihood over both kinds is largest. (Until issue 31's
+   third pass: p = 1 and two rounds of weighted least squares, whose second round's weights,
+   from the first round's line, could give one slow impact most of the weight: the real
+   corner floor came out 0.273 where the likelihood's is 0.129);
+4. 95 % intervals from BOOTSTRAP resamples of the tracks (the independent units; a track's
+   impacts of both kinds together), the power chosen again in each (an interval of sigma or
+   the floor reaching 0 holds 0: no scatter of that form is within the data).
 
 What this sigma holds: every way the real impact differs from the fitted law's, systematic
 or random, at the scale of the approach speed. That is what a forecast's ensemble lacks.
@@ -42,12 +46,12 @@ from dice_sweep.physics.layout import COUNT_COLUMNS, EVENT_IMPACT, REC_EVENT, RE
 from dice_sweep.physics.params import FP_INERTIA, FP_TMAX, IP_CONTINUE, pack_params
 from dice_sweep.physics.scatter import FLAT_TILT
 
-__all__ = ["ImpactResidual", "impact_residuals", "estimate_spreads", "scatter_section", "fitted_scatter", "KINDS"]
+__all__ = ["ImpactResidual", "impact_residuals", "estimate_spreads", "scatter_section", "fitted_scatter", "jump_sd", "KINDS", "POWERS"]
 
 BACKOFF = 2e-3  # s (true time) before the fitted contact the kernel starts: clear of the table
 REPLICATES = 16  # noisy refits per impact: half probe its stability, half measure its noise share
 BOOTSTRAP = 2000  # resamples of the tracks
-KINDS = ("corner", "flat")  # the [scatter] keys, by landing tilt (FLAT_TILT)
+KINDS = registry.SCATTER_KINDS  # the [scatter] landing kinds, by tilt (FLAT_TILT)
 # An impact whose noise share alone is a relative spread above this is left out: the kernel's
 # outcome jumps within the tracking noise there (a second corner joining or not, a pivot or a
 # bounce), and such refits gave noise shares 10 times the residual on synthetic drops. The rule
@@ -70,6 +74,9 @@ class ImpactResidual:
     noise2: float
     probe2: float
     impact: int = -1  # its index among the track's impacts (0: the first), for the checks by impact
+    # per component (vx, vy, sqrt(I/M) omega): squared residual and noise share, for the checks of the form
+    components2: tuple = ()
+    noise_components2: tuple = ()
 
 
 def _kernel(cfg, effects, params):
@@ -175,18 +182,21 @@ def impact_residuals(tracks, cfg, effects, params, *, sigma, table=0.0, seed=0, 
             if u < floor or crowded:
                 continue
             kind = "corner" if landing_tilt(sides, case[0][2]) >= FLAT_TILT else "flat"
-            shares = []
+            shares, parts = [], []
             for _ in range(replicates):
                 x = track.x + sigma[0] * rng.normal(size=track.x.size)
                 y = track.y + sigma[1] * rng.normal(size=track.y.size)
                 phi = track.phi + sigma[2] * rng.normal(size=track.phi.size)
                 again = fit_impact(track.t, x, y, phi, usable, frame, **around, **die)
                 if again is not None:
-                    shares.append(float(np.sum((predictor.residual(predictor.true(again, table, window))[0] - residual) ** 2)))
+                    parts.append((predictor.residual(predictor.true(again, table, window))[0] - residual) ** 2)
+                    shares.append(float(np.sum(parts[-1])))
             half = len(shares) // 2
             n2 = float(np.mean(shares[half:])) if shares else 0.0
             p2 = float(np.mean(shares[:half])) if half else n2
-            out.append(ImpactResidual(int(track.traj), kind, float(u), float(residual @ residual), n2, p2, k))
+            noise_parts = tuple(float(v) for v in np.mean(parts[half:], axis=0)) if shares else (0.0, 0.0, 0.0)
+            out.append(ImpactResidual(int(track.traj), kind, float(u), float(residual @ residual), n2, p2, k,
+                                      tuple(float(v) for v in residual**2), noise_parts))
     return out
 
 
@@ -194,63 +204,166 @@ def _sigma(value):
     return math.sqrt(max(value, 0.0))
 
 
-def _line(sums):
-    """(a, b) of the weighted least-squares line y = a + b x from the sums (w, wx, wxx, wy, wxy)."""
-    w, wx, wxx, wy, wxy = sums
-    det = w * wxx - wx * wx
-    if not det > 1e-12 * w * wxx:  # one approach speed only (a resample of one track): no line
-        return math.nan, math.nan
-    return (wxx * wy - wx * wxy) / det, (w * wxy - wx * wy) / det
+POWERS = tuple(round(0.2 * k, 1) for k in range(21))  # the power's profile grid, 0 to MAX_POWER
+IRLS_STEPS = 30  # reweighting steps of the maximum-likelihood fit (on the real drops: settled to 1e-6 by 20)
+STARTS = (0.9, 0.5, 0.1)  # shares of the mean square in the floor that the fit starts from
+STEP_SHARES = (1.0, 0.5, 0.2)  # of a scoring step, tried in turn; the best that climbs is taken
+_TINY = 1e-30  # (m/s)^2: keeps a variance of exactly 0 (no scatter, no noise) out of a division
 
 
-def _track_sums(chosen, index, weights, size):
-    """Per track: the five sums of :func:`_line` over its impacts, x = u^2, y = (|r|^2 - n) / 3."""
-    sums = np.zeros((size, 5))
-    for r, w in zip(chosen, weights):
-        x, y = r.approach**2, (r.residual2 - r.noise2) / 3.0
-        sums[index[r.traj]] += w * np.array([1.0, x, x * x, y, x * y])
-    return sums
+def _kind_arrays(chosen, speed, track_of):
+    """Per impact of one kind: the approach in units of ``speed``, |r|^2 / 3, n / 3 ((m/s)^2),
+    and its track's row."""
+    return (np.array([r.approach for r in chosen]) / speed, np.array([r.residual2 for r in chosen]) / 3.0,
+            np.array([r.noise2 for r in chosen]) / 3.0, np.array([track_of[r.traj] for r in chosen]))
 
 
-def estimate_spreads(residuals, *, speed, seed=0, draws=BOOTSTRAP):
-    """{kind: {value, ci95, floor, floor_ci95, variance, impacts, tracks, unstable}} for ``corner``
-    and ``flat`` (value None for a kind without impacts): per component, the jump's variance
-    (|r|^2 - n) / 3 = floor^2 + sigma^2 u^2 fitted by least squares weighted by the inverse
-    square of that variance (from a first unweighted pass); ``floor`` in units of ``speed``
-    = sqrt(g R) (m/s). Intervals: bootstrap over tracks with the weights held."""
+def _variance(a, b, x, n):
+    """a + b x + n per impact (rows, impacts), kept above 0: a or b may be below 0 (a noise share
+    measured high), as long as the variance is not."""
+    return np.maximum(a[:, None] + b[:, None] * x + n, _TINY)
+
+
+def _loglik(a, b, x, y, n, counts):
+    """Log-likelihood (rows,) of Gaussian residual components of variance a + b x + n."""
+    v = _variance(a, b, x, n)
+    return (counts * (-1.5 * np.log(v) - 1.5 * y / v)).sum(axis=1)
+
+
+def _ml_fit(x, y, n, counts, start):
+    """:func:`_fit_from` from the share ``start`` of the mean excess over the noise in a."""
+    mean = max(float(np.mean(y - n)), _TINY)
+    rows = counts.shape[0]
+    return _fit_from(x, y, n, counts, np.full(rows, start * mean), np.full(rows, (1.0 - start) * mean / max(float(np.mean(x)), _TINY)))
+
+
+def _fit_from(x, y, n, counts, a, b):
+    """Maximum likelihood of the per-component variance a + b x + n of Gaussian
+    residuals whose mean square is y, each impact counted ``counts`` times (rows: bootstrap
+    resamples): Fisher scoring (least squares of y - n on (1, x) weighted by 1 / variance^2),
+    each step shortened as far as STEP_SHARES says to climb the likelihood (a full step can
+    overshoot to a lower stationary point), from (a, b) (rows,). Returns a, b, log-likelihood,
+    each of shape (rows,)."""
+    target = y - n
+    loglik = _loglik(a, b, x, y, n, counts)
+    for _ in range(IRLS_STEPS):
+        v = _variance(a, b, x, n)
+        w = counts / (v * v)
+        sw, sx, sxx = w.sum(axis=1), (w * x).sum(axis=1), (w * x * x).sum(axis=1)
+        sy, sxy = (w * target).sum(axis=1), (w * x * target).sum(axis=1)
+        det = sw * sxx - sx * sx
+        ok = det > 1e-12 * np.maximum(sw * sxx, _TINY)  # one approach speed only: no line, stay
+        a_new = np.where(ok, (sxx * sy - sx * sxy) / np.where(ok, det, 1.0), a)
+        b_new = np.where(ok, (sw * sxy - sx * sy) / np.where(ok, det, 1.0), b)
+        best = (a, b, loglik)
+        for share in STEP_SHARES:
+            ta, tb = a + share * (a_new - a), b + share * (b_new - b)
+            tl = _loglik(ta, tb, x, y, n, counts)
+            better = tl > best[2]
+            best = tuple(np.where(better, new, old) for new, old in zip((ta, tb, tl), best))
+        a, b, loglik = best
+    return a, b, loglik
+
+
+def _best_fit(x, y, n, counts, near=None):
+    """(a, b, log-likelihood) of the best line (the likelihood can have more than one
+    stationary point: from STARTS, or from ``near``, an (a, b) of the whole sample that a
+    resample starts from). a and b are signed, as a least-squares line's would be: an excess
+    below the noise share reads below 0, so an interval can reach 0 and hold it."""
+    rows = counts.shape[0]
+    if near is None:
+        fits = [_ml_fit(x, y, n, counts, start) for start in STARTS]
+    else:
+        fits = [_fit_from(x, y, n, counts, np.full(rows, near[0]), np.full(rows, near[1]))]
+    best = fits[0]
+    for got in fits[1:]:
+        better = got[2] > best[2]
+        best = tuple(np.where(better, new, old) for new, old in zip(got, best))
+    return best
+
+
+def _profile(arrays, counts, speed, powers, near=None):
+    """For each power: (a, b) per kind and the summed log-likelihood, rows as ``counts``
+    (resamples x tracks): {kind: (a (powers, rows), b)}, loglik (powers, rows). ``near``: a
+    profile of the whole sample (one row) whose fits the resamples start from."""
+    fits = {kind: (np.zeros((len(powers), counts.shape[0])), np.zeros((len(powers), counts.shape[0]))) for kind in arrays}
+    total = np.zeros((len(powers), counts.shape[0]))
+    for kind, (u, y, n, track) in arrays.items():
+        per_impact = counts[:, track]
+        for k, power in enumerate(powers):
+            start = None if near is None else (near[kind][0][k, 0], near[kind][1][k, 0])
+            a, b, loglik = _best_fit(speed**2 * u ** (2.0 * power), y, n, per_impact, start)
+            fits[kind][0][k], fits[kind][1][k] = a, b
+            total[k] += loglik
+    return fits, total
+
+
+def estimate_spreads(residuals, *, speed, seed=0, draws=BOOTSTRAP, power=None):
+    """{corner, flat: {value, ci95, floor, floor_ci95, variance, impacts, tracks, unstable}, power:
+    {value, ci95, ...}} (a kind without impacts: value None): the per-component variance of
+    the jump, floor^2 + sigma^2 speed^2 (u / speed)^(2 power) (``speed`` = sqrt(g R), m/s; floor
+    in its units), fitted by maximum likelihood of the impacts' residuals as Gaussian with that
+    variance plus their noise share, the power shared by both kinds (the best of POWERS, or
+    ``power`` held). Intervals: bootstrap over tracks (a track's impacts of both kinds together),
+    the power chosen again in every resample."""
     rng = np.random.default_rng([seed, 3131])
-    out = {}
+    out, arrays = {}, {}
+    chosen = {}
     for kind in KINDS:
         of_kind = [r for r in residuals if r.kind == kind]
-        chosen = [r for r in of_kind if r.probe2 <= 3.0 * UNSTABLE**2 * r.approach**2]
-        trajs = sorted({r.traj for r in chosen})
-        if len(chosen) < 3 or len(trajs) < 2:
-            out[kind] = {"value": None, "ci95": None, "floor": None, "floor_ci95": None, "variance": None, "impacts": len(chosen),
-                         "tracks": len(trajs), "unstable": len(of_kind) - len(chosen)}
-            continue
-        index = {t: k for k, t in enumerate(trajs)}
-        a, b = _line(_track_sums(chosen, index, np.ones(len(chosen)), len(trajs)).sum(axis=0))
-        scale = max(a, 0.0) + max(b, 0.0) * np.array([r.approach**2 for r in chosen])
-        weights = 1.0 / np.maximum(scale, 1e-12 * speed**2) ** 2
-        sums = _track_sums(chosen, index, weights / weights.mean(), len(trajs))
-        a, b = _line(sums.sum(axis=0))
-        counts = rng.multinomial(len(trajs), np.full(len(trajs), 1.0 / len(trajs)), size=draws)
-        boot = np.array([_line(c @ sums) for c in counts])
-        a_lo, a_hi = np.nanpercentile(boot[:, 0], [2.5, 97.5])
-        b_lo, b_hi = np.nanpercentile(boot[:, 1], [2.5, 97.5])
-        out[kind] = {"value": _sigma(b), "ci95": [_sigma(b_lo), _sigma(b_hi)], "variance": float(b), "variance_ci95": [float(b_lo), float(b_hi)],
-                     "floor": _sigma(a) / speed, "floor_ci95": [_sigma(a_lo) / speed, _sigma(a_hi) / speed],
-                     "floor_variance_m2_s2": float(a), "impacts": len(chosen), "tracks": len(trajs), "unstable": len(of_kind) - len(chosen)}
+        chosen[kind] = [r for r in of_kind if r.probe2 <= 3.0 * UNSTABLE**2 * r.approach**2]
+        trajs = sorted({r.traj for r in chosen[kind]})
+        out[kind] = {"value": None, "ci95": None, "floor": None, "floor_ci95": None, "variance": None, "impacts": len(chosen[kind]),
+                     "tracks": len(trajs), "unstable": len(of_kind) - len(chosen[kind])}
+    trajs = sorted({r.traj for kind in KINDS for r in chosen[kind]})
+    track_of = {t: k for k, t in enumerate(trajs)}
+    for kind in KINDS:
+        if len(chosen[kind]) >= 3 and out[kind]["tracks"] >= 2:
+            arrays[kind] = _kind_arrays(chosen[kind], speed, track_of)
+    powers = POWERS if power is None else (float(power),)
+    if not arrays:
+        out["power"] = {"value": float(power if power is not None else 1.0), "ci95": None, "held": power is not None}
+        return out
+    ones = np.ones((1, len(trajs)))
+    fits, total = _profile(arrays, ones, speed, powers)
+    best = int(np.argmax(total[:, 0]))
+    counts = rng.multinomial(len(trajs), np.full(len(trajs), 1.0 / len(trajs)), size=draws).astype(float)
+    boot_fits, boot_total = _profile(arrays, counts, speed, powers, near=fits)
+    boot_best = np.argmax(boot_total, axis=0)
+    rows = np.arange(draws)
+    for kind in arrays:
+        a, b = fits[kind][0][best, 0], fits[kind][1][best, 0]
+        a_boot, b_boot = boot_fits[kind][0][boot_best, rows], boot_fits[kind][1][boot_best, rows]
+        a_lo, a_hi = np.nanpercentile(a_boot, [2.5, 97.5])
+        b_lo, b_hi = np.nanpercentile(b_boot, [2.5, 97.5])
+        out[kind].update({"value": _sigma(b), "ci95": [_sigma(b_lo), _sigma(b_hi)], "variance": float(b),
+                          "variance_ci95": [float(b_lo), float(b_hi)], "floor": _sigma(a) / speed,
+                          "floor_ci95": [_sigma(a_lo) / speed, _sigma(a_hi) / speed], "floor_variance_m2_s2": float(a)})
+    chosen_powers = np.asarray(powers)[boot_best]
+    out["power"] = {"value": float(powers[best]), "ci95": [float(v) for v in np.percentile(chosen_powers, [2.5, 97.5])],
+                    "held": power is not None, "at_grid_end": power is None and best in (0, len(powers) - 1),
+                    "profile_log_likelihood": {f"{p:g}": float(v) for p, v in zip(powers, total[:, 0] - total[best, 0])},
+                    # the law's best spreads and floors at every power, for a choice of the power by other means
+                    "by_power": {f"{p:g}": {kind: {"value": _sigma(fits[kind][1][k, 0]), "floor": _sigma(fits[kind][0][k, 0]) / speed}
+                                            for kind in arrays} for k, p in enumerate(powers)}}
     return out
 
 
+def jump_sd(law, kind, u):
+    """The law's jump sd per component at approach speed u, both in sqrt(g R), capped at u as
+    the kernel caps it; ``law``: [scatter] keys (a missing power: 1)."""
+    spread = law.get(kind, 0.0) * u ** law.get("power", 1.0)
+    return min(math.hypot(spread, law.get(f"{kind}_floor", 0.0)), u)
+
+
 def scatter_section(spreads):
-    """The ``[scatter]`` TOML of estimated spreads (a kind without impacts: 0)."""
+    """The ``[scatter]`` TOML of estimated spreads (a kind without impacts: 0) and the power."""
     lines = ["[scatter]"]
     for kind in KINDS:
-        for key, name in (("value", kind), ("floor", f"{kind}_floor")):
+        for key, name in zip(("value", "floor"), registry.scatter_spread_keys(kind)):
             value = spreads[kind][key]
             lines.append(f"{name} = {value if value is not None else 0.0!r}")
+    lines.append(f"power = {float(spreads.get('power', {}).get('value', 1.0))!r}")
     return "\n".join(lines) + "\n"
 
 
@@ -267,11 +380,13 @@ def fitted_scatter(trackset, cfg, effects, params, *, confirm_fraction, seed=0, 
     if log:
         log("scatter of the bounces around the fitted law (selection tracks): " + "; ".join(
             f"{kind} {s['value']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}], floor {s['floor']:.3f} [{s['floor_ci95'][0]:.3f}, "
-            f"{s['floor_ci95'][1]:.3f}] sqrt(gR) ({s['impacts']} impacts)" for kind, s in spreads.items() if s["value"] is not None))
+            f"{s['floor_ci95'][1]:.3f}] sqrt(gR) ({s['impacts']} impacts)" for kind, s in ((k, spreads[k]) for k in KINDS)
+            if s["value"] is not None) + f"; power {spreads['power']['value']:g} {spreads['power']['ci95']}")
     return {**spreads, "toml": scatter_section(spreads), "tracks": "selection", "model": MODEL}
 
 
-MODEL = ("each impact's velocity jump: the fitted law's plus a Gaussian of sd min(sqrt((sigma u)^2 + (floor sqrt(g R))^2), u) per "
+MODEL = ("each impact's velocity jump: the fitted law's plus a Gaussian of sd min(sqrt((sigma sqrt(g R) (u / sqrt(g R))^power)^2 + "
+         "(floor sqrt(g R))^2), u) per "
          "component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed; sigma and floor 'flat' for landings within "
          "15 deg of flat, else 'corner' "
          "(docs/physics.md, 'Scattered impacts'; estimator: docs/measured_method.md)")

@@ -2,9 +2,10 @@
 
 After the deterministic impact (one corner, or two at once), the centre of mass's velocity
 gets a random jump, Gaussian and isotropic in the kinetic-energy metric (vx, vy,
-sqrt(I/M) omega), of standard deviation min(sqrt((sigma u)^2 + f^2), u) per component: u
-(m/s) the touching corner's approach speed before the impact, sigma the relative spread and f
-the floor (m/s; the config's floor times sqrt(g R)) of ``[scatter]``, ``flat`` and
+sqrt(I/M) omega), of standard deviation min(sqrt((sigma v (u / v)^p)^2 + f^2), u) per
+component: u (m/s) the touching corner's approach speed before the impact, v = sqrt(g R), p
+the ``power`` (1, the null value: sigma u exactly as before the key existed), sigma the
+relative spread and f the floor (m/s; the config's floor times sqrt(g R)) of ``[scatter]``, ``flat`` and
 ``flat_floor`` for a landing with a side within FLAT_TILT of the surface (or a two-contact
 impact), else ``corner`` and ``corner_floor``. A jump that would leave the die with more kinetic energy than it brought in, or
 the touching corner still approaching the surface, is drawn again (at most TRIES times; then
@@ -27,11 +28,14 @@ import numba
 import numpy as np
 
 from dice_sweep.physics.params import (
+    FP_G,
     FP_INERTIA,
+    FP_R,
     FP_SCATTER_CORNER,
     FP_SCATTER_CORNER_FLOOR,
     FP_SCATTER_FLAT,
     FP_SCATTER_FLAT_FLOOR,
+    FP_SCATTER_POWER,
     FP_STREAM_DRAW,
     FP_STREAM_PIXEL,
     FP_STREAM_SEED,
@@ -112,6 +116,17 @@ def scatter_on(fpar):
 
 
 @numba.njit(cache=True)
+def spread_term(fpar, sigma, approach):
+    """The law's speed term (m/s): sigma u at power 1 (the same float operations as before the
+    power existed, so such rolls stay bit for bit), else sigma sqrt(g R) (u / sqrt(g R))^power."""
+    power = fpar[FP_SCATTER_POWER]
+    if power == 1.0:
+        return sigma * approach
+    unit = math.sqrt(fpar[FP_G] * fpar[FP_R])
+    return sigma * unit * (approach / unit) ** power
+
+
+@numba.njit(cache=True)
 def scatter_impact(s, fpar, ipar, rx, ry, nx, ny, corner, vx0, vy0, w0, approach, index, two_contacts):
     """Add the random velocity jump of impact ``index`` (0, 1, ... within the roll) to the COM
     state s, in place. (rx, ry): the touching contact point from the COM; (nx, ny): the
@@ -128,7 +143,7 @@ def scatter_impact(s, fpar, ipar, rx, ry, nx, ny, corner, vx0, vy0, w0, approach
     energy_in = vx0 * vx0 + vy0 * vy0 + inertia * w0 * w0
     key = stream_key(fpar[FP_STREAM_SEED], fpar[FP_STREAM_PIXEL], fpar[FP_STREAM_DRAW])
     # never above the approach itself: a floor on a corner barely touching would only be redrawn
-    size = min(math.sqrt((sigma * approach) ** 2 + floor * floor), approach)
+    size = min(math.sqrt(spread_term(fpar, sigma, approach) ** 2 + floor * floor), approach)
     base = np.uint64(index) * np.uint64(VARIATES)
     for attempt in range(TRIES):
         c = base + np.uint64(6 * attempt)

@@ -60,8 +60,9 @@ What is simulated
   is then integrated in time, a spring-dashpot in compression and a spring in restitution at
   each corner in contact, with regularised Coulomb friction (:class:`_Contact`,
   :func:`compliant_constants`), in place of the impact laws. A stochastic impact law
-  (``scatter_corner``, ``scatter_flat``, ``scatter_floor``): after each impact a Gaussian
-  velocity jump of sd min(sqrt((sigma u)^2 + (floor sqrt(g R))^2), u) per component of
+  (``scatter_corner``, ``scatter_flat``, ``scatter_floor``, ``scatter_power`` p): after each
+  impact a Gaussian velocity jump of sd min(sqrt((sigma v (u / v)^p)^2 + (floor v)^2), u),
+  v = sqrt(g R), per component of
   (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed,
   redrawn while it gains energy or leaves the corner approaching (numpy's generator, one
   stream per drop from ``scatter_seed`` and the release state). Measurement effects: a wrong clock, a wrong length scale and an angle
@@ -153,6 +154,8 @@ class Truth:
     scatter_corner: float = 0.0
     scatter_flat: float = 0.0
     scatter_floor: float = 0.0  # in sqrt(g R): sd = min(sqrt((scatter u)^2 + (floor sqrt(g R))^2), u), both kinds
+    # the spread term's power of the approach speed: scatter sqrt(g R) (u / sqrt(g R))^power (1: scatter u)
+    scatter_power: float = 1.0
     scatter_seed: int = 0
 
 
@@ -1070,7 +1073,9 @@ def _scatter(truth, die, before, after, k, two, rng):
     floor = truth.scatter_floor * math.sqrt(truth.g * truth.circumradius)
     if (sigma <= 0.0 and floor <= 0.0) or u <= 0.0:
         return after
-    size = min(math.hypot(sigma * u, floor), u)
+    unit = math.sqrt(truth.g * truth.circumradius)
+    spread = sigma * u if truth.scatter_power == 1.0 else sigma * unit * (u / unit) ** truth.scatter_power
+    size = min(math.hypot(spread, floor), u)
     root = math.sqrt(die.inertia)
     limit = _kinetic(die, before[3:])
     for _ in range(SCATTER_TRIES):

@@ -308,3 +308,88 @@ def test_the_scale_of_the_law_is_found_by_the_forecasts_log_score(scattered_drop
     unscaled = scattered_source(dict(TRUTH_PARAMS), half)
     out, _, _ = fc.forecast_tracks(other.tracks, RIGID, unscaled, sigma=sigma, bounces=(0, 1), members=500, workers=2, observed=seen)
     assert min(fc.score_bounce(out[k], 4, np.random.default_rng(0))["calibration"]["log_score_z"] for k in (0, 1)) < -3  # the test has power
+
+
+# --- the model-free forecast from the release (k nearest neighbours) -----------------------------
+
+
+def _release_drops(count, seed, informative):
+    """Release states and sides from a rule written here (no package code): the die turned by m
+    quarter turns rests on the side m lower (geometry's convention), and within a quarter turn
+    the side is set by the sign of the spin, 80 % of the time (``informative``), else by a coin."""
+    rng = np.random.default_rng(seed)
+    period = math.pi / 2
+    phi = rng.uniform(-3.0, 3.0, count)
+    omega = rng.uniform(-10.0, 10.0, count)
+    states = np.column_stack([rng.normal(0, 0.01, count), rng.uniform(0.1, 0.2, count), phi, rng.normal(0, 0.3, count),
+                              rng.normal(-2.0, 0.2, count), omega])
+    turns = np.floor((phi + 0.25 * math.pi) / period).astype(int)
+    base = np.where(omega > 0, 0, 2)
+    sides = np.where(rng.random(count) < 0.8, base, rng.integers(0, 4, count)) if informative else rng.integers(0, 4, count)
+    return states, (sides - turns) % 4
+
+
+@pytest.mark.parametrize("informative", [True, False])
+def test_the_model_free_forecast_finds_what_the_release_tells_and_nothing_else(informative):
+    """Trained on 400 drops, scored on 300 others: with sides set by the spin the skill's
+    interval is above 0 and its most likely side is right far above 1/4; the control (sides
+    from a die nobody threw) claims no skill: its interval reaches 0 or below (a learner fitted
+    to noise may score below the uniform forecast: here -0.049 [-0.078, -0.020], the training
+    tracks' chance imbalance of sides, 124 of 400 on one, not shared by the test tracks)."""
+    cfg = parse_config("[die]\nsides = 4\n")
+    train, train_sides = _release_drops(400, 1, informative)
+    test, test_sides = _release_drops(300, 2, informative)
+    got = fc.neighbour_forecast(train, train_sides, test, test_sides, cfg, draws=500)
+    low, high = got["log_skill"]["ci95"]
+    if informative:
+        assert low > 0.2 and got["share_correct_most_likely"]["value"] > 0.6, got["log_skill"]
+        assert "omega0" in got["features"]
+    else:
+        assert low <= 0.0 and got["log_skill"]["value"] < 0.02, got["log_skill"]
+    assert got["n_tracks"] == 300 and got["n_train"] == 400
+
+
+def test_the_model_free_forecast_pairs_with_a_reference():
+    """The paired difference against a reference forecast of the same tracks: the uniform one's
+    log score is -ln 4, so the difference is the skill itself."""
+    cfg = parse_config("[die]\nsides = 4\n")
+    train, train_sides = _release_drops(200, 3, True)
+    test, test_sides = _release_drops(100, 4, True)
+    got = fc.neighbour_forecast(train, train_sides, test, test_sides, cfg, draws=200, reference=np.full((100, 4), 0.25))
+    assert got["log_skill_over_reference"]["value"] == pytest.approx(got["log_skill"]["value"])
+
+
+# --- the law's form: a scatter growing faster than the approach speed (issue 31) -----------------
+
+
+@pytest.mark.slow
+def test_a_law_whose_power_is_estimated_forecasts_calibrated(tmp_path_factory):
+    """Drops whose bounces scatter with sd 0.02 sqrt(gR) (u / sqrt(gR))^2 and a floor of 0.03
+    sqrt(gR): the law estimated from 120 of them (impact residuals, the power free) has a power
+    interval holding 2 and not 1, and a scale (chosen by those drops' forecasts) holding 1;
+    forecasts of 160 other drops from the release and from flights 1 and 2 with it are
+    calibrated (|z| < 3). By hand (the same calls, load 8): power 2.0 [1.8, 2.2], scale 0.96
+    [0.78, 1.13]; z log -0.0, 0.8, 1.4. The old form (power held at 1, its own scale 1.17 [0.85,
+    1.39]) gave -0.7, 2.1, 1.9: also within 3 on drops this few, so this does not show it fail."""
+    from dice_sweep.measured.scatter import estimate_spreads, impact_residuals
+
+    truth = Truth(**TRUTH, scatter_corner=0.02, scatter_flat=0.02, scatter_floor=0.03, scatter_power=2.0, scatter_seed=7)
+    selection, seen = synthetic(tmp_path_factory, "power_selection", truth, 120, 7, PRECISE, 500.0)
+    other, other_seen = synthetic(tmp_path_factory, "power_other", truth, 160, 8, PRECISE, 500.0)
+    sigma = (PRECISE[0], PRECISE[0], PRECISE[1])
+    residuals = impact_residuals(selection.tracks, RIGID, (), TRUTH_PARAMS, sigma=sigma, seed=7)
+    got = estimate_spreads(residuals, speed=math.sqrt(9.81 * RIGID.die.circumradius), seed=7)
+    low, high = got["power"]["ci95"]
+    assert low <= 2.0 <= high and low > 1.0, got["power"]
+    law = {"corner": got["corner"]["value"], "corner_floor": got["corner"]["floor"], "flat": got["flat"]["value"],
+           "flat_floor": got["flat"]["floor"], "power": got["power"]["value"]}
+    prepared = fc.prepared_tracks(selection.tracks, RIGID, sigma, 0.0, seen)
+    scale = fc.fit_scatter_scale(prepared, RIGID, scattered_source(dict(TRUTH_PARAMS), law), (0, 1, 2), sigma=sigma, observed=seen,
+                                 members=200, workers=2)
+    assert scale["ci95"][0] <= 1.0 <= scale["ci95"][1], scale
+    source = scattered_source(dict(TRUTH_PARAMS), fc.scaled_scatter(law, scale["value"]))
+    out, _, _ = fc.forecast_tracks(other.tracks, RIGID, source, sigma=sigma, bounces=(0, 1, 2), members=500, workers=2, observed=other_seen)
+    for k in (0, 1, 2):
+        s = fc.score_bounce(out[k], 4, np.random.default_rng(0))
+        assert s["n_tracks"] >= 100
+        assert abs(s["calibration"]["log_score_z"]) < 3 and abs(s["calibration"]["brier_z"]) < 3, (k, s["calibration"])

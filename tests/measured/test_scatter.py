@@ -27,15 +27,16 @@ def config(truth):
                         '[contact]\nmodel = "rigid"\nbeta_normal = 0.4\nbeta_tangential = 0.2\nfriction = 0.5\n')
 
 
-def estimate(tmp_path_factory, spread, seed, floor=0.0):
-    truth = Truth(**LAW, scatter_corner=spread, scatter_flat=spread, scatter_floor=floor, scatter_seed=seed)
+def estimate(tmp_path_factory, spread, seed, floor=0.0, power=1.0, held=None):
+    truth = Truth(**LAW, scatter_corner=spread, scatter_flat=spread, scatter_floor=floor, scatter_power=power, scatter_seed=seed)
     drops = simulate_drops(truth, DROPS, seed, rate=500.0, duration=1.0, noise=NOISE)
     path = tmp_path_factory.mktemp(f"scatter{seed}") / "drops.csv"
     write_csv(path, drops)
     tracks = load_tracks(path, sides=4, circumradius=truth.circumradius)
     sigma = (NOISE[0], NOISE[0], NOISE[1])
     speed = math.sqrt(9.81 * truth.circumradius)
-    return estimate_spreads(impact_residuals(tracks.tracks, config(truth), (), PARAMS, sigma=sigma, seed=seed), speed=speed, seed=seed)
+    residuals = impact_residuals(tracks.tracks, config(truth), (), PARAMS, sigma=sigma, seed=seed)
+    return estimate_spreads(residuals, speed=speed, seed=seed, power=held)
 
 
 @pytest.mark.parametrize("seed", [11, 12])
@@ -48,6 +49,23 @@ def test_the_interval_covers_the_true_spread(tmp_path_factory, seed):
         assert low <= SPREAD <= high, (kind, got)
         assert high - low < 0.08, (kind, got)  # informative: not "anything from 0 to 1"
         assert got["floor_ci95"][0] == 0.0, (kind, got)  # the truth has no floor
+    # the control of the power: a spread proportional to u, so the interval holds its null value 1
+    low, high = spreads["power"]["ci95"]
+    assert low <= 1.0 <= high and high - low < 1.5, spreads["power"]
+
+
+@pytest.mark.parametrize("seed", [41, 42])
+def test_a_scatter_growing_faster_than_the_approach_is_found(tmp_path_factory, seed):
+    """Truth: sd = 0.02 sqrt(g R) (u / sqrt(g R))^2 and a floor of 0.05 sqrt(g R): fast
+    impacts scatter far more than a spread proportional to u gives. The power's interval
+    holds 2 and not 1, and the spread's and the floor's intervals hold the truth."""
+    spreads = estimate(tmp_path_factory, 0.02, seed, floor=0.05, power=2.0)
+    low, high = spreads["power"]["ci95"]
+    assert low <= 2.0 <= high and low > 1.0, spreads["power"]
+    for kind in ("corner", "flat"):
+        got = spreads[kind]
+        assert got["ci95"][0] <= 0.02 <= got["ci95"][1], (kind, got)
+        assert got["floor_ci95"][0] <= 0.05 <= got["floor_ci95"][1], (kind, got)
 
 
 @pytest.mark.parametrize("seed", [21, 22])
@@ -71,18 +89,31 @@ def test_without_scatter_the_interval_holds_zero(tmp_path_factory):
         assert got["floor_ci95"][0] == 0.0 and got["floor_ci95"][1] < 0.05, (kind, got)
 
 
-def test_the_weighted_line_by_hand():
+def test_the_law_of_an_exact_line_by_hand():
     """Impacts on an exact line (|r|^2 - n) / 3 = f^2 + s^2 u^2: the fit returns s and f (f in
-    units of the speed given); an unstable impact is left out; the TOML section reads back."""
+    units of the speed given) and the power 1; an unstable impact is left out; the TOML section
+    reads back."""
     s2, f2, speed = 0.01, 0.0004, 0.5
     rows = [ImpactResidual(t, "corner", u, 3 * (f2 + s2 * u * u) + 0.01, 0.01, 0.001) for t, u in enumerate((0.5, 1.0, 2.0, 3.0, 1.5), 1)]
     rows.append(ImpactResidual(9, "corner", 1.0, 50.0, 9.0, 9.0))  # unstable: its probe share is far above 0.1 u
-    spreads = estimate_spreads(rows, speed=speed, draws=200)
+    free = estimate_spreads(rows, speed=speed, draws=200)
+    assert free["power"]["value"] == 1.0 and free["corner"]["value"] == pytest.approx(0.1)
+    spreads = estimate_spreads(rows, speed=speed, draws=200, power=1.0)  # held: every resample on the same line
     got = spreads["corner"]
     assert got["value"] == pytest.approx(0.1) and got["floor"] == pytest.approx(0.02 / speed)
     assert got["impacts"] == 5 and got["unstable"] == 1 and got["tracks"] == 5
     assert got["ci95"][0] == pytest.approx(0.1) and got["ci95"][1] == pytest.approx(0.1)  # an exact line: every resample agrees
     assert spreads["flat"]["value"] is None  # no impact of that kind
-    cfg = parse_config(scatter_section(spreads))
+    cfg = parse_config(scatter_section(free))
     assert cfg.scatter.corner == pytest.approx(0.1) and cfg.scatter.corner_floor == pytest.approx(0.04)
-    assert cfg.scatter.flat == 0.0 and cfg.scatter.flat_floor == 0.0
+    assert cfg.scatter.flat == 0.0 and cfg.scatter.flat_floor == 0.0 and cfg.scatter.power == 1.0
+
+
+def test_a_power_read_from_the_residuals_by_hand():
+    """Impacts on an exact curve with the spread term growing as u^2: the power found is 2 and
+    the spread the one the residuals were made with."""
+    speed = 0.5
+    rows = [ImpactResidual(t, "flat", u, 3 * (0.0004 + (0.05 * speed * (u / speed) ** 2) ** 2) + 0.01, 0.01, 0.001)
+            for t, u in enumerate((0.5, 1.0, 2.0, 3.0, 1.5, 0.8), 1)]
+    got = estimate_spreads(rows, speed=speed, draws=100)
+    assert got["power"]["value"] == 2.0 and got["flat"]["value"] == pytest.approx(0.05)

@@ -10,8 +10,9 @@ from dice_sweep.config import parse_config
 from dice_sweep.engine import ENGINE_PLAIN
 from dice_sweep.mapper import Mapper, roll_states
 from dice_sweep.measured.impacts import landing_tilt as measured_tilt
-from dice_sweep.physics.params import FP_INERTIA, FP_SCATTER_CORNER, FP_SCATTER_CORNER_FLOOR, FP_SCATTER_FLAT, FP_SCATTER_FLAT_FLOOR, pack_params
-from dice_sweep.physics.scatter import TRIES, landing_tilt, normal, scatter_impact, stream_key, uniform
+from dice_sweep.physics.params import (FP_G, FP_INERTIA, FP_R, FP_SCATTER_CORNER, FP_SCATTER_CORNER_FLOOR, FP_SCATTER_FLAT, FP_SCATTER_FLAT_FLOOR,
+                                       FP_SCATTER_POWER, FP_STREAM_DRAW, FP_STREAM_PIXEL, FP_STREAM_SEED, pack_params)
+from dice_sweep.physics.scatter import TRIES, VARIATES, landing_tilt, normal, scatter_impact, stream_key, uniform
 from tests.physics.conftest import make_params
 
 
@@ -41,10 +42,11 @@ def test_landing_tilt_on_the_table_is_calibrates():
         assert landing_tilt(phi, n, 0.0, 1.0, lowest) == pytest.approx(measured_tilt(n, phi), abs=1e-12)
 
 
-def _jumps(sigma, count, vy=-2.0, w=3.0, floor=0.0):
+def _jumps(sigma, count, vy=-2.0, w=3.0, floor=0.0, power=1.0):
     """Velocity jumps of ``count`` impacts of corner 0 (tilted 30 deg: a corner landing)."""
     fpar, ipar = make_params(sides=4, radius=0.02)
     fpar[FP_SCATTER_CORNER] = sigma
+    fpar[FP_SCATTER_POWER] = power
     fpar[FP_SCATTER_CORNER_FLOOR] = floor
     fpar[FP_SCATTER_FLAT] = 9.0  # must not be used
     fpar[FP_SCATTER_FLAT_FLOOR] = 9.0
@@ -79,6 +81,35 @@ def test_the_floor_adds_in_quadrature():
     d = jumps[jumps[:, 0] >= 0, 1:]
     d[:, 2] *= math.sqrt(inertia)
     assert np.std(d, axis=0) == pytest.approx(math.hypot(0.03 * approach, 0.05) * np.ones(3), rel=0.06)
+
+
+@pytest.mark.parametrize("power", [0.0, 0.5, 2.0])
+def test_the_spread_term_follows_the_power_of_the_approach(power):
+    """sd = sigma sqrt(g R) (u / sqrt(g R))^power: at power 2 this corner, approaching at 4.5
+    sqrt(g R), scatters 4.5 times what power 1 gives it, at 0 1/4.5 of it."""
+    jumps, approach, inertia, *_ = _jumps(0.03, 4000, power=power)
+    fpar, _ = make_params(sides=4, radius=0.02)
+    unit = math.sqrt(fpar[FP_G] * fpar[FP_R])
+    d = jumps[jumps[:, 0] >= 0, 1:]
+    d[:, 2] *= math.sqrt(inertia)
+    assert np.std(d, axis=0) == pytest.approx(0.03 * unit * (approach / unit) ** power * np.ones(3), rel=0.06)
+
+
+def test_power_one_is_todays_law_bit_for_bit():
+    """At the power's null value each kept jump is the old law's, to the bit: size
+    min(sqrt((sigma u)^2 + f^2), u) times the stream's normal numbers (recomputed here in plain
+    Python floats); a power a hair off 1 gives other bits."""
+    sigma, floor = 0.05, 0.02
+    jumps, approach, inertia, after, *_ = _jumps(sigma, 200, floor=floor)
+    fpar, _ = make_params(sides=4, radius=0.02)
+    key = stream_key(fpar[FP_STREAM_SEED], fpar[FP_STREAM_PIXEL], fpar[FP_STREAM_DRAW])
+    size = min(math.sqrt((sigma * approach) ** 2 + floor * floor), approach)
+    for index, (tried, dvx, *_) in enumerate(jumps):
+        if tried >= 0:
+            counter = np.uint64(index) * np.uint64(VARIATES) + np.uint64(6 * int(tried))
+            assert after[3] + dvx == after[3] + size * normal(key, counter)
+    off, *_ = _jumps(sigma, 200, floor=floor, power=1.0 + 1e-12)
+    assert not np.array_equal(jumps, off) and np.allclose(jumps, off, atol=1e-9)
 
 
 def test_config_floors_are_in_each_dies_own_speed():
