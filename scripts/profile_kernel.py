@@ -270,13 +270,17 @@ def replay_outcome(post, hits, u_n, fpar, n, stick_speed):
 
 @numba.njit
 def replay_pivots(pivots, fpar, n, kinds, pre, hits):
-    """pivot_next from every recorded closed-form pivot (columns: corner, px, chi, state);
-    the state where each landing pivot puts its next corner down goes to ``pre``."""
+    """The closed-form pivot from every recorded one (columns: corner, px, chi, state), as the
+    roll loop makes it (flat angles from the batch's table); the state where each landing
+    pivot puts its next corner down goes to ``pre``."""
     out = np.zeros(5)
     hit = np.zeros(2, np.int64)
+    flats = np.full((n, 2), math.nan)  # kernel._flat_table: NaN until a corner first pivots
     for i in range(pivots.shape[0]):
         corner = int(pivots[i, 0])
-        kinds[i] = pivot.pivot_next(fpar, n, corner, pivots[i, 1], pivots[i, 2], pivots[i, 8], out, hit)
+        chi_right, chi_left = kernel._flat_pair(fpar, n, corner, flats)
+        kinds[i] = pivot.pivot_next_flat(fpar, n, corner, pivots[i, 1], pivots[i, 2], pivots[i, 8], chi_right, chi_left,
+                                         out, hit)
         for j in range(6):
             pre[i, j] = pivots[i, 3 + j]
         kernel._set_pivot_state(pre[i], fpar, pivots[i, 1] + out[3], out[0], out[1], corner)
@@ -576,8 +580,9 @@ kernel.
   purpose.
 - Newton on the gap itself from the bound's root: at low spin the lowest corner's gap is
   concave, so it would need a bracket.
-- ``pivot_next`` (``pivot.py``, not changed here) recomputes the pivot corner's geometry
-  and flat angles (``atan2`` calls) on every pivot; a per-corner table would remove them.
+- ``pivot_next`` recomputed the flat angles (``atan2`` calls) on every pivot; the roll loop
+  now keeps them per corner for the batch (issue 33, branch imp33). The corner's geometry
+  (``corner_geometry``) is still read on every pivot.
 """
 
 

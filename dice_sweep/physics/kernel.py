@@ -111,7 +111,8 @@ from dice_sweep.physics.pivot import (
     pivot_angle_at,
     pivot_energy,
     pivot_omega_squared,
-    pivot_next,
+    flat_angles,
+    pivot_next_flat,
     pivot_ode,
     below_the_top,
 )
@@ -174,6 +175,21 @@ def _record(rec, nrec, t, kind, s, corner, px, chi, energy, event):
     rec[nrec, REC_ENERGY] = energy
     rec[nrec, REC_EVENT] = event
     return nrec + 1
+
+
+@numba.njit(cache=True)
+def _flat_table(ipar):
+    """An empty :func:`_flat_pair` table for the die of ipar: float64[n, 2] of NaN."""
+    return np.full((ipar[IP_N], 2), math.nan)
+
+
+@numba.njit(cache=True)
+def _flat_pair(fpar, n, corner, flats):
+    """``flat_angles(fpar, n, corner)``, computed on the corner's first pivot and then read
+    from ``flats``: 20-sided rolls spent 119 of the 359 ns of a pivot on it (issue 33)."""
+    if math.isnan(flats[corner, 0]):
+        flats[corner, 0], flats[corner, 1] = flat_angles(fpar, n, corner)
+    return flats[corner, 0], flats[corner, 1]
 
 
 @numba.njit(cache=True)
@@ -528,7 +544,7 @@ def _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_deci
 # each on every roll. The fixed overhead of a roll fell by about 40 % (docs/dev/profile.md, change
 # 5); results bit for bit the same.
 @numba.njit(inline="always")
-def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
+def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
     """One roll by events (docs/physics.md): from the state ``s`` (centre of mass, changed in
     place) to a decided side, or to a stop with a status.
 
@@ -545,7 +561,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
     The side is decided once the energy is below the barrier of the side below the centre of
     mass (outcome.decided_side); with ``ipar[IP_CONTINUE]`` the roll goes on to rest.
     ``rec`` receives one record per segment (layout.REC_*); ``counts`` the event tallies;
-    ``after``, ``out`` and ``hit`` are scratch arrays (float64[6], float64[5], int64[2]).
+    ``after``, ``out`` and ``hit`` are scratch arrays (float64[6], float64[5], int64[2]);
+    ``flats`` (float64[n, 2], NaN where not yet known) the die's :func:`_flat_pair` table.
 
     Returns (outcome, status, t_decided, t_end, n_records).
     """
@@ -626,7 +643,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit):
             out[3] = 0.0
             out[4] = 0.0
             if closed_form:
-                kind = pivot_next(fpar, n, corner, px, chi, s[5], out, hit)
+                chi_right, chi_left = _flat_pair(fpar, n, corner, flats)
+                kind = pivot_next_flat(fpar, n, corner, px, chi, s[5], chi_right, chi_left, out, hit)
             else:
                 kind = pivot_ode(fpar, n, corner, px, chi, s[5], slip, t_max - t, not keep_going, out, hit)
             if kind == PIVOT_BALANCED:
@@ -846,20 +864,22 @@ def roll_one(fpar, ipar, state0, rec, counts):
     n_records : int
         Rows of ``rec`` written (the last may be cut off when rec is too small).
     """
-    return _roll_into(fpar, ipar, state0, rec, counts, np.empty(6), np.empty(6), np.empty(5), np.empty(2, dtype=np.int64))
+    return _roll_into(fpar, ipar, state0, rec, counts, np.empty(6), np.empty(6), np.empty(5), np.empty(2, dtype=np.int64),
+                      _flat_table(ipar))
 
 
 @numba.njit(inline="always")
-def _roll_into(fpar, ipar, state0, rec, counts, s, after, pivot_out, hit):
+def _roll_into(fpar, ipar, state0, rec, counts, s, after, pivot_out, hit, flats):
     """:func:`roll_one` with its scratch arrays passed in (float64[6], float64[6],
     float64[5], int64[2], contents irrelevant), so that a batch allocates them once: four
-    allocations per roll were 5-10 % of a roll's time (docs/dev/profile.md)."""
+    allocations per roll were 5-10 % of a roll's time (docs/dev/profile.md). ``flats``
+    (:func:`_flat_table`) is kept across the batch's rolls: the same die."""
     shift_reference(state0, fpar, 1.0, s)
     for i in range(counts.shape[0]):
         counts[i] = 0
     if ipar[IP_METHOD] == METHOD_FIXED_STEP:
         return _roll_fixed_step(fpar, ipar, s, rec, counts, after)
-    return _roll_event(fpar, ipar, s, rec, counts, after, pivot_out, hit)
+    return _roll_event(fpar, ipar, s, rec, counts, after, pivot_out, hit, flats)
 
 
 @numba.njit(cache=True)
@@ -869,8 +889,9 @@ def roll_batch(fpar, ipar, states, out_outcome, out_status, out_counts, out_t):
     rec = np.empty((0, REC_WIDTH))
     counts = np.zeros(out_counts.shape[1], dtype=np.int32)
     s, after, pivot_out, hit = np.empty(6), np.empty(6), np.empty(5), np.empty(2, dtype=np.int64)
+    flats = _flat_table(ipar)
     for i in range(states.shape[0]):
-        outcome, status, t_decided, _, _ = _roll_into(fpar, ipar, states[i], rec, counts, s, after, pivot_out, hit)
+        outcome, status, t_decided, _, _ = _roll_into(fpar, ipar, states[i], rec, counts, s, after, pivot_out, hit, flats)
         out_outcome[i] = outcome
         out_status[i] = status
         out_t[i] = t_decided
@@ -969,6 +990,7 @@ def sample_batch(fpar, ipar, states, times, starts, out, out_outcome):
     rec = np.empty((SAMPLE_RECORDS, REC_WIDTH))
     counts = np.zeros(len(COUNT_COLUMNS), dtype=np.int32)
     s, after, roll_pivot_out, hit = np.empty(6), np.empty(6), np.empty(5), np.empty(2, dtype=np.int64)
+    flats = _flat_table(ipar)  # t_max is all that changes between the rows: the same die
     own = fpar.copy()  # per-roll t_max without touching the caller's array
     past = SAMPLE_PAST * math.sqrt(fpar[FP_RHO_MAX] / fpar[FP_G])
     for i in range(states.shape[0]):
@@ -977,7 +999,7 @@ def sample_batch(fpar, ipar, states, times, starts, out, out_outcome):
             own[FP_TMAX] = min(fpar[FP_TMAX], times[starts[i + 1] - 1] + past)
         else:
             own[FP_TMAX] = fpar[FP_TMAX]
-        outcome, _, _, _, n_rec = _roll_into(own, ipar, states[i], rec, counts, s, after, roll_pivot_out, hit)
+        outcome, _, _, _, n_rec = _roll_into(own, ipar, states[i], rec, counts, s, after, roll_pivot_out, hit, flats)
         out_outcome[i] = outcome
         lo = starts[i]
         hi = starts[i + 1]

@@ -259,10 +259,17 @@ def pivot_next(fpar, n, corner, px, chi0, omega0, out, hit):
     int
         PIVOT_LIFTOFF, PIVOT_FLAT, PIVOT_WALL or PIVOT_BALANCED.
     """
+    chi_right, chi_left = flat_angles(fpar, n, corner)
+    return pivot_next_flat(fpar, n, corner, px, chi0, omega0, chi_right, chi_left, out, hit)
+
+
+@numba.njit(cache=True)
+def pivot_next_flat(fpar, n, corner, px, chi0, omega0, chi_right, chi_left, out, hit):
+    """:func:`pivot_next` given the corner's ``flat_angles(fpar, n, corner)``: the roll loop
+    keeps them per corner for the batch, as they depend on the die alone."""
     g = fpar[FP_G]
     rho, _ = corner_geometry(fpar, corner)
     alpha = fpar[FP_INERTIA] / (rho * rho)
-    chi_right, chi_left = flat_angles(fpar, n, corner)
     chi0 = min(max(chi0, chi_right), chi_left)
     e = pivot_energy(chi0, omega0, rho, g, alpha)
     if omega0 > 0.0:
