@@ -204,7 +204,7 @@ def _load(config_path, overrides):
 
 
 def _parse_shard(ctx, param, text):
-    from dice_sweep.sweep import parse_shard
+    from dice_sweep.executor import parse_shard  # not dice_sweep.sweep: numba is imported later, by _fast_kernel_start
 
     return parse_shard(text)
 

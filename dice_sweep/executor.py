@@ -74,6 +74,34 @@ def worker_count(workers: int | None) -> int:
     return workers
 
 
+def parse_shard(text: str) -> tuple[int, int]:
+    """``"I/N"`` -> (I, N), with 0 <= I < N.
+
+    Parameters
+    ----------
+    text : str
+        The ``--shard`` argument (which part of a sweep's tiles this process computes; here, not in
+        dice_sweep.sweep, so that checking it imports no kernel: docs/dev/speed_issue33.md).
+
+    Returns
+    -------
+    tuple of int
+        (I, N).
+
+    Raises
+    ------
+    DiceSweepError
+        If the text is not of that form.
+    """
+    try:
+        shard_index, shard_count = (int(part) for part in text.split("/"))
+    except ValueError:
+        raise DiceSweepError(f"--shard {text!r}: expected I/N, e.g. 0/4") from None
+    if shard_count < 1 or not 0 <= shard_index < shard_count:
+        raise DiceSweepError(f"--shard {shard_index}/{shard_count}: need 0 <= I < N")
+    return shard_index, shard_count
+
+
 def check_executor(executor: str, scheduler: str | None, workers: int | None) -> None:
     """Refuse an executor this pool does not have, and options it does not combine with
     (one line each, naming the option)."""

@@ -72,6 +72,9 @@ def cache_directories():
     return [str(_PHYSICS_DIR / "__pycache__"), os.path.join(user_wide, CACHE_SUBDIR)]
 
 
+_writable = set()  # cache directories this process has created and written a test file in
+
+
 def _locator_class():
     from numba.core import caching
 
@@ -97,10 +100,12 @@ def _locator_class():
                 return None
             for path in cache_directories():
                 locator = cls(py_func, path)
-                try:
-                    locator.ensure_cache_path()
-                except OSError:
-                    continue
+                if path not in _writable:  # tested once per process, not once per kernel (about 130)
+                    try:
+                        locator.ensure_cache_path()
+                    except OSError:
+                        continue
+                    _writable.add(path)
                 return locator
             return None  # nowhere writable: numba's own locators decide
 
@@ -157,14 +162,16 @@ def notify_first_compile(callback):
 
 # numba module -> what it imports only to support what the kernels do not use
 _SKIPPED = {
+    "numba": ("scipy",),  # numba's import checks SciPy's version (SciPy >= 1.0): 10 ms of CPU to import it
     "numba.np.arraymath": ("scipy.linalg", "scipy.linalg.cython_blas"),  # the BLAS probe
     "numba.core.typing.cffi_utils": ("cffi",),  # cffi.FFI() parses C declarations: 30 ms of CPU
 }
 
 
 class _Hidden(importlib.abc.MetaPathFinder):
+    # the top package too: importing scipy.linalg imports scipy first (6-10 ms of CPU)
     def __init__(self, names):
-        self.names = names
+        self.names = {*names, *(name.partition(".")[0] for name in names)}
 
     def find_spec(self, name, path=None, target=None):
         if name in self.names:
@@ -173,8 +180,9 @@ class _Hidden(importlib.abc.MetaPathFinder):
 
 
 def skip_numba_blas_probe() -> bool:
-    """Import numba's array-math registry with scipy.linalg hidden, and its cffi support with
-    cffi hidden; True if the BLAS probe was skipped.
+    """Import numba with scipy hidden (its version check), numba's array-math registry with
+    scipy hidden (the BLAS probe), and its cffi support with cffi hidden; True if the BLAS
+    probe was skipped.
 
     Each does nothing when the numba module or the hidden one is imported already (False for
     the BLAS probe). The kernels call no BLAS and no cffi function.

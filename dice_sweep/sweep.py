@@ -19,8 +19,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
-
 from dice_sweep.config import PARAM_UNITS, config_to_toml
 from dice_sweep.engine import ENGINE_NUMBA, ENGINE_PLAIN, PROBE_ROLLS
 from dice_sweep.errors import DiceSweepError
@@ -300,33 +298,6 @@ def grid_tile_shape(cfg) -> tuple[int, int]:
 # --- sweep -------------------------------------------------------------------------------
 
 
-def parse_shard(text: str) -> tuple[int, int]:
-    """``"I/N"`` -> (I, N), with 0 <= I < N.
-
-    Parameters
-    ----------
-    text : str
-        The ``--shard`` argument.
-
-    Returns
-    -------
-    tuple of int
-        (I, N).
-
-    Raises
-    ------
-    DiceSweepError
-        If the text is not of that form.
-    """
-    try:
-        shard_index, shard_count = (int(part) for part in text.split("/"))
-    except ValueError:
-        raise DiceSweepError(f"--shard {text!r}: expected I/N, e.g. 0/4") from None
-    if shard_count < 1 or not 0 <= shard_index < shard_count:
-        raise DiceSweepError(f"--shard {shard_index}/{shard_count}: need 0 <= I < N")
-    return shard_index, shard_count
-
-
 def _sweep_axis(axis) -> SweepAxis:
     return SweepAxis(axis.param, PARAM_UNITS[axis.param], axis_values(axis), float(axis.min), float(axis.max))
 
@@ -410,7 +381,7 @@ def run_sweep(
         With ``executor="dask"``: the processes of the local cluster started when no
         ``scheduler`` is given; not allowed with a ``scheduler`` (the cluster has its own).
     shard : tuple of int
-        (I, N), 0 <= I < N (:func:`parse_shard`): compute only the tiles with
+        (I, N), 0 <= I < N (:func:`dice_sweep.executor.parse_shard`): compute only the tiles with
         ``tile_index % N == I``.
     resume : bool
         Continue the file ``out_path`` of the same config and shard, computing only the tiles
@@ -493,11 +464,8 @@ def run_sweep(
             StopRequest() as stop,  # before forking: workers never see the default handler
             tile_results(job.task(), todo, workers, stop, executor=executor, scheduler=scheduler) as results,
             _open_output(path, header, tiles.count, resuming) as sweep_file,
-            tqdm(
-                total=rolls_in_shard, initial=rolls_in_shard - rolls_todo, unit=" rolls",
-                unit_scale=True, desc=path.name, file=sys.stderr,
-                disable=not (progress and sys.stderr.isatty()),
-            ) as bar,
+            _progress_bar(progress, total=rolls_in_shard, initial=rolls_in_shard - rolls_todo, unit=" rolls",
+                          unit_scale=True, desc=path.name) as bar,
         ):
             for index, maps in results:
                 sweep_file.write_tile(index, *tiles.bounds(index), maps)
@@ -516,6 +484,30 @@ def run_sweep(
             "is kept); run the same command with --resume to finish it"
         ) from None
     return summary(rolls_computed, complete)
+
+
+class _NoBar:
+    """What the sweep's loop updates when no bar is shown."""
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        return None
+
+    def update(self, n=1):
+        return None
+
+
+def _progress_bar(progress: bool, **options):
+    """A tqdm bar on stderr when ``progress`` and stderr is a terminal, else one that shows
+    nothing. tqdm is imported only for a bar: its import (and its look-up of its own version
+    in the installed packages' metadata) is about 10 ms of every command's fixed start."""
+    if not (progress and sys.stderr.isatty()):
+        return _NoBar()
+    from tqdm import tqdm
+
+    return tqdm(file=sys.stderr, **options)
 
 
 def _tiles_written(sweep_file: SweepFile, tiles: TileGrid) -> np.ndarray:

@@ -6,7 +6,7 @@ import os
 import pytest
 
 from dice_sweep.errors import DiceSweepError
-from dice_sweep.executor import StopRequest, TileTask, check_executor, tile_results
+from dice_sweep.executor import StopRequest, TileTask, check_executor, parse_shard, tile_results
 
 
 def _square_and_pid(index):
@@ -37,3 +37,10 @@ def test_executor_options_that_do_not_combine_are_refused(options, message):
         check_executor(*options)
     check_executor("dask", "tcp://h:8786", None)
     check_executor("local", None, 3)
+
+
+def test_parse_shard_accepts_i_of_n_only():
+    assert parse_shard("2/5") == (2, 5)
+    for text in ("5/5", "-1/3", "1", "a/b", "1/0"):
+        with pytest.raises(DiceSweepError, match="--shard"):
+            parse_shard(text)

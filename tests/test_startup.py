@@ -20,7 +20,7 @@ took = skip_numba_blas_probe()
 from dice_sweep.config import load_config
 from dice_sweep.roll import roll_config
 report = roll_config(load_config("configs/table1.toml", ["initial.omega0=20"]))
-linalg_during_roll = "scipy.linalg" in sys.modules or "cffi" in sys.modules
+linalg_during_roll = "scipy" in sys.modules or "cffi" in sys.modules
 from scipy.optimize import least_squares  # scipy.linalg still imports afterwards
 fit = least_squares(lambda p: p - 3.0, [0.0])
 print(json.dumps([took, linalg_during_roll, report.outcome, report.impacts, report.t_decided, float(fit.x[0])]))
@@ -55,3 +55,25 @@ def test_the_cache_key_covers_the_registrys_kernel_slots(monkeypatch):
     extra = effects.ConfigKey("effects", "angular_drag", 0.0, "1", slot="FP_ANGULAR_DRAG")
     monkeypatch.setattr(effects, "config_key_specs", lambda: {**specs, "effects": {"angular_drag": extra, **specs["effects"]}})
     assert startup.source_digest() != before
+
+
+SWEEP_CHILD = """
+import sys
+from dice_sweep.cli import main
+try:
+    main(["sweep", "configs/fig08.toml", "-o", sys.argv[1], "--set", "grid.x.num=2", "--set", "grid.y.num=2",
+          "--workers", "1", "--quiet"])
+except SystemExit as ended:
+    assert not ended.code, ended.code
+print(" ".join(sorted(name for name in ("scipy", "tqdm", "dice_sweep.refine", "dice_sweep.chaos") if name in sys.modules)))
+"""
+
+
+def test_a_quiet_sweep_imports_neither_scipy_nor_the_progress_bar_nor_refinement(tmp_path):
+    """What the sweep command does not use stays out of its start-up (docs/dev/speed_issue33.md):
+    tqdm without a terminal, scipy (numba's version check), --refine's and the chaos measures'
+    modules."""
+    out = tmp_path / "s.h5"
+    child = subprocess.run([sys.executable, "-c", SWEEP_CHILD, str(out)], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert child.stdout.strip() == ""
+    assert out.exists()

@@ -26,7 +26,6 @@ from dice_sweep.sweep import (
     axis_values,
     default_tile_shape,
     merge_parts,
-    parse_shard,
     run_sweep,
 )
 from tests.helpers import assert_same_maps, stop_after
@@ -101,13 +100,6 @@ def test_large_grids_get_larger_tiles_and_every_other_grid_64_x_64():
     assert default_tile_shape((512, 4096)) == (128, 128)
     assert default_tile_shape((1023, 1024)) == (64, 64)
     assert default_tile_shape((7, 10)) == (64, 64)
-
-
-def test_parse_shard_accepts_i_of_n_only():
-    assert parse_shard("2/5") == (2, 5)
-    for text in ("5/5", "-1/3", "1", "a/b", "1/0"):
-        with pytest.raises(DiceSweepError, match="--shard"):
-            parse_shard(text)
 
 
 # --- bitwise equality across workers, shards, tile orders ----------------------------------

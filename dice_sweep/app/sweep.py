@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 
-from dice_sweep.chaos.measures import shannon_entropy
 from dice_sweep.config import check_computable, parse_config, require_grid
 from dice_sweep.errors import DiceSweepError
 from dice_sweep.executor import check_executor
@@ -53,6 +52,8 @@ def draw_sweep_file(h5_path, png_path, *, box=None, dpi=150, warn: Callable[[str
     if sweep_data.probability is None:
         figure = sweep_figure(sweep_data, title, box=box, dpi=dpi)
     else:  # a probability sweep: the most likely side shaded by its probability, and the entropy
+        from dice_sweep.chaos.measures import shannon_entropy
+
         entropy = np.where(sweep_data.computed, shannon_entropy(np.nan_to_num(sweep_data.probability)), np.nan)
         figure = probability_figure(sweep_data, entropy, title, box=box, dpi=dpi)
     save_figure(figure, png_path, dpi)
@@ -74,22 +75,23 @@ def sweep(cfg, out_path, *, png_path=None, workers=None, shard=(0, 1), resume=Fa
     ``out_path``, then its diagram if asked. Returns (summary, pictures written).
 
     ``cfg`` is a loaded (validated) config, ``shard`` and ``workers`` the checked option values
-    (:func:`dice_sweep.sweep.parse_shard`, :func:`dice_sweep.executor.worker_count`), the
+    (:func:`dice_sweep.executor.parse_shard`, :func:`dice_sweep.executor.worker_count`), the
     output paths checked (:func:`dice_sweep.outputs.check_outputs`). What only this command
     asks is checked here: a grid, ``--refine``'s levels and what it combines with, the executor.
     """
-    from dice_sweep.refine import check_levels, check_refinable, run_refined_sweep
-    from dice_sweep.sweep import run_sweep
-
     require_grid(cfg)
     check_computable(cfg)
     if refine_levels is not None:
+        from dice_sweep.refine import check_levels, check_refinable, run_refined_sweep  # only here: start-up time
+
         if resume or shard != (0, 1) or executor != "local":
             raise DiceSweepError("--refine: cannot be combined with --shard, --resume or --executor dask (a refined sweep is written whole, at the end)")
         check_refinable(cfg)
         check_levels(cfg, refine_levels)
         summary = run_refined_sweep(cfg, out_path, refine_levels, workers=workers, progress=progress, log=log)
     else:
+        from dice_sweep.sweep import run_sweep
+
         check_executor(executor, scheduler, workers)
         summary = run_sweep(cfg, out_path, workers=workers, shard=shard, resume=resume, progress=progress,
                             executor=executor, scheduler=scheduler)
