@@ -12,7 +12,10 @@ first timed run):
 - default: ``run_sweep`` in this process, which has loaded the kernel already (what a
   long-lived process pays: the sweep itself);
 - ``--cli``: the whole ``dice-sweep sweep`` command in a fresh process (Python's start, the
-  imports and loading the kernel from numba's cache included: what a user waits for).
+  imports and loading the kernel from numba's cache included: what a user waits for). The
+  package is byte-compiled first, as an installed one is (pip compiles at install): under
+  PYTHONDONTWRITEBYTECODE=1 an editable checkout would compile its modules from source at
+  every start, 0.06-0.07 s of CPU (docs/dev/speed_issue33.md).
 
 Each run writes a fresh file in a temporary folder (removed afterwards). The worker counts
 take turns within each round, so that all see the same machine. Printed per count: wall time,
@@ -24,6 +27,7 @@ the CPU times much less. The maps of all runs are checked to be bitwise equal.
 """
 
 import argparse
+import compileall
 import os
 import pathlib
 import resource
@@ -90,6 +94,10 @@ def main():
     print(f"{args.config} {' '.join(args.overrides)}: {ny} x {nx} = {ny * nx} rolls in {job.tiles.count} tiles of "
           f"{job.tiles.tile_shape[0]} x {job.tiles.tile_shape[1]}, n = {cfg.die.sides}, {cfg.integrator.method} integrator; {mode}")
     job.warm_up()  # compile, or load from numba's cache, before any timing (a fresh cache: the compile is not timed)
+    if args.cli:
+        import dice_sweep
+
+        compileall.compile_dir(pathlib.Path(dice_sweep.__file__).parent, quiet=1)
     with tempfile.TemporaryDirectory() as folder:
         folder = pathlib.Path(folder)
         if args.cli:  # one untimed command: the files it reads are then in the OS's cache for every timed one
