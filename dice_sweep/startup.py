@@ -162,14 +162,14 @@ def notify_first_compile(callback):
 
 # numba module -> what it imports only to support what the kernels do not use
 _SKIPPED = {
-    "numba": ("scipy",),  # numba's import checks SciPy's version (SciPy >= 1.0): 10 ms of CPU to import it
+    "numba": ("scipy",),  # numba's import checks SciPy's version (SciPy >= 1.0): 8-9 ms of CPU to import it
     "numba.np.arraymath": ("scipy.linalg", "scipy.linalg.cython_blas"),  # the BLAS probe
     "numba.core.typing.cffi_utils": ("cffi",),  # cffi.FFI() parses C declarations: 30 ms of CPU
 }
 
 
 class _Hidden(importlib.abc.MetaPathFinder):
-    # the top package too: importing scipy.linalg imports scipy first (6-10 ms of CPU)
+    # the top package too: importing scipy.linalg imports scipy first (8-9 ms of CPU)
     def __init__(self, names):
         self.names = {*names, *(name.partition(".")[0] for name in names)}
 
