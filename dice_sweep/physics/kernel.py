@@ -98,7 +98,8 @@ from dice_sweep.physics.layout import (  # noqa: F401  (STATE_COLUMNS ... re-exp
     STATUS_STALLED,
     STATUS_T_MAX,
 )
-from dice_sweep.physics.ladder import LADDER_AT_REST, LADDER_DECIDED, LADDER_OFF_WALL, LADDER_REFUSED, LADDER_TIMEOUT, ladder, ladder_at, ladder_state
+from dice_sweep.physics.ladder import (LADDER_AT_REST, LADDER_DECIDED, LADDER_OFF_WALL, LADDER_REFUSED, LADDER_TIMEOUT, ladder, ladder_at,
+                                      ladder_spin, ladder_state)
 from dice_sweep.physics.multi_contact import resolve_two_contacts, second_contact
 from dice_sweep.physics.scatter import scatter_impact, scatter_on
 from dice_sweep.physics.outcome import DECISION_MARGIN, barrier_height, decided_side, decision_bound, rest_height, side_below  # noqa: F401
@@ -131,6 +132,10 @@ REST_ENERGY = 1e-9  # x g rho_max: a decided die this close to lying still is at
 # energy than REST_ENERGY, after which it is at rest there (propped): without it such a die
 # traded pivots and wall impacts at ~1e-9 m/s until the event budget (issue 33).
 PROPPED_CYCLES = 16
+# Pivots on one table corner in a row, each ended by the same corner hitting a wall, after which
+# that wall contact counts as sustained (a ladder) even if it rebounds faster than the stick speed:
+# a loaded die sliding down a wall in hops took 10^5 events for 4 s (issue 33, seed 3).
+WALL_CHATTER_LIMIT = 16
 RESTING_GAP = 1e-9  # x rho_max: a corner this close above the table rests on it (a flat die)
 LONE_MARGIN = 1e-9  # relative, x rho_max: round-off allowed for in _far_gap and _lone_contact
 DECIDED_SPEED_MARGIN = 1e-9  # relative: a sliding die counts as decided just below the barrier's speed
@@ -602,6 +607,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
     closed_form = True
     chatter = 0
     propped = 0
+    wall_chatter = 0  # pivots on table_corner in a row ended by wall corner wall_corner
+    wall_corner = np.int64(-1)
     table_corner = np.int64(0)  # the corner of the last pivot
     sliding_walls = n_surf == 3 and not math.isinf(fpar[FP_MU])  # a ladder needs walls and sliding friction
     loaded = fpar[FP_COM_X] != 0.0 or fpar[FP_COM_Y] != 0.0  # a fair die lying flat is never past its side
@@ -666,6 +673,11 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
         surf = hit[0]
         same_corner = surf == SURF_TABLE and hit[1] == corner and last_was_flight_impact
         chatter = chatter + 1 if same_corner else 0
+        if surf != SURF_TABLE:
+            wall_chatter = wall_chatter + 1 if came_from_pivot and hit[1] == wall_corner else int(came_from_pivot)
+            wall_corner = hit[1]
+        elif hit[1] != table_corner:
+            wall_chatter = 0
         corner = hit[1]
         last_was_flight_impact = not came_from_pivot
         walls_before = counts[C_WALL]  # a wall in this impact, alone or shared with the table
@@ -704,16 +716,18 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
             if gap < -tol:
                 s[0] += nx * (tol - gap)
         ladder_end = LADDER_REFUSED
-        if surf != SURF_TABLE and sliding_walls and abs(u_n) < stick_speed:
+        if surf != SURF_TABLE and sliding_walls and (abs(u_n) < stick_speed or wall_chatter >= WALL_CHATTER_LIMIT):
             # a wall contact that stays, on a table corner that stays: slide on both (physics/ladder.py)
             on_corner = px if came_from_pivot else _corner_down(s, fpar, table_corner)
             rx, _ = corner_vector(s, fpar, table_corner)
             kinetic = specific_energy(s, fpar) - g * s[1]
             if on_corner == on_corner and abs(s[4] + s[5] * rx) < stick_speed and kinetic >= REST_ENERGY * g * scale:
                 wall_side = -surface_frame(surf, fpar[FP_WALL])[0]
-                ladder_end, tau = ladder(fpar, n, table_corner, corner, wall_side, s[2], s[5], t_max - t, after)
+                # chattering faster than the stick speed: the limit of the hops, a plastic stop of both contacts
+                spin = s[5] if abs(u_n) < stick_speed else ladder_spin(fpar, table_corner, corner, s)
+                ladder_end, tau = ladder(fpar, n, table_corner, corner, wall_side, s[2], spin, t_max - t, after)
                 if ladder_end != LADDER_REFUSED:
-                    ladder_state(fpar, table_corner, corner, wall_side, s[2], s[5], s)
+                    ladder_state(fpar, table_corner, corner, wall_side, s[2], spin, s)
                     nrec = _record(rec, nrec, t, SEG_LADDER, s, table_corner, float(corner), wall_side, specific_energy(s, fpar), EVENT_IMPACT)
                     for i in range(6):
                         s[i] = after[i]

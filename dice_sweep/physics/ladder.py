@@ -69,6 +69,21 @@ def ladder_state(fpar, a, b, wall, phi, omega, s):
 
 
 @numba.njit(cache=True)
+def ladder_spin(fpar, a, b, s):
+    """The spin (rad/s) of the motion on table corner a and wall corner b nearest to the
+    centre-of-mass state s in the kinetic-energy metric: the velocity a plastic, frictionless
+    impulse at both contacts leaves (their normal velocities zero). A projection, so the kinetic
+    energy never rises; it ends a wall contact chattering above the stick speed (kernel)."""
+    c = math.cos(s[2])
+    sn = math.sin(s[2])
+    rax, _ = corner_offset(fpar, a, c, sn)
+    _, rby = corner_offset(fpar, b, c, sn)
+    k2 = fpar[FP_INERTIA]
+    # ladder_state's velocity is omega (rby, -rax, 1)
+    return (s[3] * rby - s[4] * rax + k2 * s[5]) / (rby * rby + rax * rax + k2)
+
+
+@numba.njit(cache=True)
 def is_hinge(fpar, a, b):
     """True if the phase on table corner a and wall corner b is a hinge: one sharp corner."""
     return a == b and fpar[FP_CORNER_RADIUS] == 0.0

@@ -12,7 +12,7 @@ from dice_sweep.physics.flight import corner_offset
 from dice_sweep.physics.impact import specific_energy
 from dice_sweep.physics.ladder import (LADDER_AT_REST, LADDER_CONTACT, LADDER_DECIDED, LADDER_OFF_TABLE, LADDER_OFF_WALL,
                                        LADDER_REFUSED, hinge_margins, hinge_reaction, is_hinge, ladder, ladder_at,
-                                       ladder_state)
+                                       ladder_spin, ladder_state)
 from dice_sweep.physics.outcome import corner_geometry
 from dice_sweep.physics.params import FP_G, FP_INERTIA, FP_WALL
 from tests.physics.conftest import make_params
@@ -75,6 +75,45 @@ def test_friction_holds_a_slow_ladder_still_and_none_does_not():
     slid = np.zeros(6)
     how, tau = ladder(pentagon(0.0), 5, TABLE, WALL, RIGHT, 0.989, -1e-3, 1.0, slid)
     assert how == LADDER_DECIDED and slid[5] != 0.0
+
+
+def plastic_two_contact_velocity(fpar, sides, radius, com, table, wall, s):
+    """The velocity (vx, vy, omega) after the frictionless plastic impulse at table corner
+    ``table`` and right-wall corner ``wall`` of the centre-of-mass state s, solved as an impulse:
+    J M^-1 J^T p = -J v with M = diag(1, 1, k^2), for a die whose centre of mass sits ``com``
+    (body frame) from its centre."""
+    c, sn = math.cos(s[2]), math.sin(s[2])
+    offset = np.array([c * com[0] - sn * com[1], sn * com[0] + c * com[1]])
+    arms = [radius * np.array([math.cos(s[2] + 2 * math.pi * k / sides), math.sin(s[2] + 2 * math.pi * k / sides)]) - offset
+            for k in (table, wall)]
+    # rows: the table corner's upward velocity, the wall corner's velocity away from the right wall
+    jac = np.array([[0.0, 1.0, arms[0][0]], [-1.0, 0.0, arms[1][1]]])
+    inv_mass = np.diag([1.0, 1.0, 1.0 / fpar[FP_INERTIA]])
+    v = np.asarray(s[3:6], float)
+    impulse = np.linalg.solve(jac @ inv_mass @ jac.T, -jac @ v)
+    return v + inv_mass @ jac.T @ impulse
+
+
+def test_a_chattering_wall_contact_stops_plastically_on_both_contacts():
+    """ladder_spin, the spin a ladder is entered with from a wall contact chattering above the
+    stick speed, gives the velocity of the frictionless plastic impulse at both contacts (solved
+    here as an impulse, for loaded hexagons with random velocities): both normal velocities
+    zero and the kinetic energy never above the one before."""
+    rng = np.random.default_rng(33)
+    radius, com = 0.0197, (0.00285, -0.00526)
+    fpar = make_params(sides=6, radius=radius, model="paper", friction=0.15, separation=0.047, com_offset=com)[0]
+    for _ in range(50):
+        s = np.array([0.0, 0.0, rng.uniform(0.3, 0.9), *rng.normal(0.0, 1e-3, 2), rng.normal(0.0, 0.05)])
+        expected = plastic_two_contact_velocity(fpar, 6, radius, com, 4, 5, s)
+        projected = np.zeros(6)
+        ladder_state(fpar, 4, 5, RIGHT, s[2], ladder_spin(fpar, 4, 5, s), projected)
+        assert np.allclose(projected[3:], expected, rtol=0.0, atol=1e-15)
+        kinetic = 0.5 * (s[3] ** 2 + s[4] ** 2 + fpar[FP_INERTIA] * s[5] ** 2)
+        after = 0.5 * (projected[3] ** 2 + projected[4] ** 2 + fpar[FP_INERTIA] * projected[5] ** 2)
+        assert after <= kinetic
+    # the spin kept as it is (the entry below the stick speed) is another velocity: the check can tell
+    ladder_state(fpar, 4, 5, RIGHT, s[2], s[5], projected)
+    assert not np.allclose(projected[3:], expected, rtol=0.0, atol=1e-9)
 
 
 # --- a hinge: one sharp corner in the corner of table and right wall ----------------------------
