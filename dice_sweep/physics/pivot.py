@@ -766,6 +766,7 @@ SLIDE_STOP_REACH = 2.0  # a first panel spans this many times the estimated turn
 # radian, and a tiny panel's values are flat to round-off): larger halves the panel.
 SLIDE_TAIL = 1e-15
 SLIDE_HALVINGS = 4  # a panel halved this often without converging (a turning point near) leaves the slide to the ODE
+PIVOT_SCRATCH_ROWS = 22  # pivot_ode_flat's scratch: scale, y, trial, tmp, state, 7 stages, 10 rows of a slide
 
 
 def _chebyshev_tables(m):
@@ -1084,31 +1085,47 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     (:func:`_event_margin`), the predicate deciding which end moves; the step is then taken again, for real, to the event, so that
     the event holds in the state returned (the loop's next pass acts on it).
     """
+    chi_right, chi_left = flat_angles(fpar, n, corner)
+    return pivot_ode_flat(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision, chi_right, chi_left, out, hit)
+
+
+@numba.njit(cache=True)
+def pivot_ode_flat(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision, chi_right, chi_left, out, hit):
+    """:func:`pivot_ode` given the corner's ``flat_angles(fpar, n, corner)`` (the roll loop keeps
+    them per corner, as for :func:`pivot_next_flat`)."""
     g = fpar[FP_G]
     mu = fpar[FP_MU]
     c = fpar[FP_DRAG]
     inertia = fpar[FP_INERTIA]
     arc = fpar[FP_CORNER_RADIUS]
     rho, _ = corner_geometry(fpar, corner)
-    chi_right, chi_left = flat_angles(fpar, n, corner)
     time_unit = math.sqrt(rho / g)
     h_max = ODE_MAX_STEP * time_unit
     h_min = ODE_MIN_STEP * time_unit
     t_tol = EVENT_TIME_TOL * time_unit
-    scale = np.empty(4)
+    # one allocation for all the scratch (rows of SLIDE_NODES): seven were about 150 ns of a
+    # rigid-law pivot's 2.7 us (issue 33)
+    buf = np.empty((PIVOT_SCRATCH_ROWS, SLIDE_NODES))
+    scale = buf[0, :4]
     scale[0] = ODE_TOL
     scale[1] = ODE_TOL / time_unit
     scale[2] = ODE_TOL * rho
     scale[3] = ODE_TOL * rho / time_unit
-    y = np.zeros(4)
+    y = buf[1, :4]
+    trial = buf[2, :4]
+    tmp = buf[3, :4]
+    state = buf[4, :6]
+    k = buf[5:12]  # rows 0-6 of the Dormand-Prince stages (the first 4 columns)
+    work = buf[12:22]
+    for i in range(4):
+        y[i] = 0.0
+        trial[i] = 0.0
+        tmp[i] = 0.0
+    for i in range(6):
+        state[i] = 0.0
     y[0] = min(max(chi0, chi_right), chi_left)
     y[1] = omega0
     y[3] = slip0
-    trial = np.zeros(4)
-    tmp = np.zeros(4)
-    k = np.zeros((7, 4))
-    state = np.zeros(6)
-    work = np.empty((10, SLIDE_NODES))
     if abs(slip0) <= SLIP_TOL * math.sqrt(g * rho):
         y[3] = 0.0
     mode = MODE_STICK if y[3] == 0.0 else (1 if y[3] > 0.0 else -1)
