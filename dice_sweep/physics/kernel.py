@@ -115,6 +115,7 @@ from dice_sweep.physics.pivot import (
     flat_angles,
     pivot_next_flat,
     pivot_ode,
+    pivot_ode_flat,
     below_the_top,
 )
 
@@ -649,11 +650,12 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
         else:
             out[3] = 0.0
             out[4] = 0.0
+            chi_right, chi_left = _flat_pair(fpar, n, corner, flats)
             if closed_form:
-                chi_right, chi_left = _flat_pair(fpar, n, corner, flats)
                 kind = pivot_next_flat(fpar, n, corner, px, chi, s[5], chi_right, chi_left, out, hit)
             else:
-                kind = pivot_ode(fpar, n, corner, px, chi, s[5], slip, t_max - t, not keep_going, out, hit)
+                kind = pivot_ode_flat(fpar, n, corner, px, chi, s[5], slip, t_max - t, not keep_going, chi_right, chi_left,
+                                      out, hit)
             if kind == PIVOT_BALANCED:
                 return _stopped(decided, STATUS_BALANCED, t_decided, t, nrec)
             if kind == PIVOT_TIMEOUT or t + out[2] > t_max:

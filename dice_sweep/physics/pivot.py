@@ -766,12 +766,14 @@ SLIDE_STOP_REACH = 2.0  # a first panel spans this many times the estimated turn
 # radian, and a tiny panel's values are flat to round-off): larger halves the panel.
 SLIDE_TAIL = 1e-15
 SLIDE_HALVINGS = 4  # a panel halved this often without converging (a turning point near) leaves the slide to the ODE
+PIVOT_SCRATCH_ROWS = 22  # pivot_ode_flat's scratch: scale, y, trial, tmp, state, 7 stages, 10 rows of a slide
 
 
 def _chebyshev_tables(m):
     """Chebyshev-Lobatto points on [-1, 1] (increasing), the matrix taking values there to the
-    values of the interpolant's integral from -1, the rows giving its last two Chebyshev
-    coefficients, and the barycentric weights."""
+    values of the interpolant's integral from -1 (stored transposed: row j holds what value j
+    adds to each point), the rows giving its last two Chebyshev coefficients, and the
+    barycentric weights."""
     x = -np.cos(np.pi * np.arange(m) / (m - 1))
     cheb = np.polynomial.chebyshev
     to_coef = np.linalg.solve(cheb.chebvander(x, m - 1), np.eye(m))
@@ -782,7 +784,7 @@ def _chebyshev_tables(m):
         integral[:, k] = cheb.chebval(x, cheb.chebint(unit, lbnd=-1.0))
     weights = (-1.0) ** np.arange(m)
     weights[[0, -1]] *= 0.5
-    return x, integral @ to_coef, np.ascontiguousarray(to_coef[-2:]), weights
+    return x, np.ascontiguousarray((integral @ to_coef).T), np.ascontiguousarray(to_coef[-2:]), weights
 
 
 SLIDE_TABLES = _chebyshev_tables(SLIDE_NODES)
@@ -791,45 +793,55 @@ SLIDE_TINY_TABLES = _chebyshev_tables(SLIDE_TINY_NODES)
 
 
 @numba.njit(cache=True)
-def _panel_integral(q, values, m, scale, out):
-    """out = scale times the integral from the panel's start of the interpolant of the first m
-    ``values`` at the Chebyshev points, at the same points (q: the table's matrix)."""
-    out[0] = 0.0
+def _panel_integral(q_t, work, src, m, scale, dst):
+    """work[dst] = scale times the integral from the panel's start of the interpolant of the
+    first m values of work[src] at the Chebyshev points, at the same points (q_t: the table's
+    matrix, transposed). Rows by index, not as views: a view costs a reference count up and
+    down.
+
+    Each point's sum runs over the values in order, as a dot product would, but all points
+    advance together: the points are independent, so the loop over them vectorizes, where a dot
+    product per point is a chain of dependent additions. The same sums, bit for bit.
+    """
+    for i in range(m):
+        work[dst, i] = 0.0
+    for j in range(m):
+        v = work[src, j]
+        for i in range(1, m):
+            work[dst, i] += q_t[j, i] * v
     for i in range(1, m):
-        acc = 0.0
-        for j in range(m):
-            acc += q[i, j] * values[j]
-        out[i] = scale * acc
+        work[dst, i] *= scale
 
 
 @numba.njit(cache=True)
-def _panel_tail(rows, values, m):
-    """Size of the last two Chebyshev coefficients of the first m ``values`` relative to their
-    largest (rows: the table's)."""
+def _panel_tail(rows, work, src, m):
+    """Size of the last two Chebyshev coefficients of the first m values of work[src] relative
+    to their largest (rows: the table's)."""
     top = 0.0
     c1 = 0.0
     c2 = 0.0
     for j in range(m):
-        top = max(top, abs(values[j]))
-        c1 += rows[0, j] * values[j]
-        c2 += rows[1, j] * values[j]
+        value = work[src, j]
+        top = max(top, abs(value))
+        c1 += rows[0, j] * value
+        c2 += rows[1, j] * value
     return (abs(c1) + abs(c2)) / top
 
 
 @numba.njit(cache=True)
-def _panel_values(x, xs, weights, a, b, m):
-    """The interpolants of the first m of ``a`` and ``b`` (at the Chebyshev points xs) at x in
-    [-1, 1], by the barycentric formula."""
+def _panel_values(x, xs, weights, work, a, b, m):
+    """The interpolants of the first m values of work[a] and work[b] (at the Chebyshev points
+    xs) at x in [-1, 1], by the barycentric formula."""
     num_a = 0.0
     num_b = 0.0
     den = 0.0
     for j in range(m):
         d = x - xs[j]
         if d == 0.0:
-            return a[j], b[j]
+            return work[a, j], work[b, j]
         q = weights[j] / d
-        num_a += q * a[j]
-        num_b += q * b[j]
+        num_a += q * work[a, j]
+        num_b += q * work[b, j]
         den += q
     return num_a / den, num_b / den
 
@@ -904,16 +916,8 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
     panel = SLIDE_PANEL
     if mode * y[3] > 0.0 and mode * slip_rate < 0.0:
         panel = min(panel, SLIDE_STOP_REACH * abs(omega_a * y[3] / slip_rate))
-    chi_n = work[0]
-    sin_n = work[1]
-    cos_n = work[2]
-    inv_d = work[3]
-    phi = work[4]
-    lever = work[5]
-    integral = work[6]
-    w2 = work[7]
-    inv_w = work[8]
-    t_n = work[9]
+    # the rows of work by index (a view costs a reference count up and down)
+    chi_n, sin_n, cos_n, inv_d, phi, lever, integral, w2, inv_w, t_n = 0, 1, 2, 3, 4, 5, 6, 7, 8, 9
     lo = chi_a  # start of the current panel, W and the time there
     w_lo = omega_a * omega_a
     t_lo = 0.0
@@ -946,29 +950,29 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
             if not d > 0.0:
                 ok = False
                 break
-            chi_n[j] = chi
-            sin_n[j] = sn
-            cos_n[j] = cs
-            inv_d[j] = 1.0 / d
-            lever[j] = lev
-        if ok and _panel_tail(rows, inv_d, m) > tail_tol:
+            work[chi_n, j] = chi
+            work[sin_n, j] = sn
+            work[cos_n, j] = cs
+            work[inv_d, j] = 1.0 / d
+            work[lever, j] = lev
+        if ok and _panel_tail(rows, work, inv_d, m) > tail_tol:
             ok = False
         if ok:
-            _panel_integral(q, inv_d, m, half, phi)
+            _panel_integral(q, work, inv_d, m, half, phi)
             for j in range(m):
-                phi[j] = math.exp(k * s_mu * phi[j])  # now exp(k s mu Phi)
-                lever[j] /= phi[j]
-            _panel_integral(q, lever, m, half, integral)
-            d_lo = 1.0 / inv_d[0]
+                work[phi, j] = math.exp(k * s_mu * work[phi, j])  # now exp(k s mu Phi)
+                work[lever, j] /= work[phi, j]
+            _panel_integral(q, work, lever, m, half, integral)
+            d_lo = 1.0 / work[inv_d, 0]
             pull = 2.0 * rho * g / (inertia * d_lo)
             for j in range(m):
-                w = d_lo * inv_d[j] * phi[j] * (w_lo - pull * integral[j])
+                w = d_lo * work[inv_d, j] * work[phi, j] * (w_lo - pull * work[integral, j])
                 if not w > 0.0:
                     ok = False
                     break
-                w2[j] = w
-                inv_w[j] = 1.0 / math.sqrt(w)
-            if ok and _panel_tail(rows, inv_w, m) > tail_tol:
+                work[w2, j] = w
+                work[inv_w, j] = 1.0 / math.sqrt(w)
+            if ok and _panel_tail(rows, work, inv_w, m) > tail_tol:
                 ok = False
         if not ok:
             halvings += 1
@@ -976,35 +980,35 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
                 return -1.0
             panel *= 0.5
             continue
-        _panel_integral(q, inv_w, m, abs(half), t_n)
+        _panel_integral(q, work, inv_w, m, abs(half), t_n)
         for j in range(m):
-            t_n[j] += t_lo
+            work[t_n, j] += t_lo
         for j in range(1, m):
-            _, _, up = _slide_state(sin_n[j], cos_n[j], w2[j], t_n[j], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
-            if _slide_margin(sin_n[j], w2[j], up, mode, rho, g) > 0.0:
+            _, _, up = _slide_state(work[sin_n, j], work[cos_n, j], work[w2, j], work[t_n, j], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+            if _slide_margin(work[sin_n, j], work[w2, j], up, mode, rho, g) > 0.0:
                 found = j
                 break
         if found >= 0 or hi == chi_end:
             break
         lo = hi
-        w_lo = w2[m - 1]
-        t_lo = t_n[m - 1]
+        w_lo = work[w2, m - 1]
+        t_lo = work[t_n, m - 1]
         panel = SLIDE_PANEL
     if found < 0:
         chi = chi_end
-        w_end = w2[m - 1]
-        t_end = t_n[m - 1]
+        w_end = work[w2, m - 1]
+        t_end = work[t_n, m - 1]
     else:
         # Illinois in x in [-1, 1] on the interpolants' margin, then on until the test holds
         x_lo = xs[found - 1]
         x_hi = 1.0 if found == m - 1 else xs[found]
-        _, _, up = _slide_state(sin_n[found - 1], cos_n[found - 1], w2[found - 1], t_n[found - 1], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
-        f_lo = min(_slide_margin(sin_n[found - 1], w2[found - 1], up, mode, rho, g), -1e-300)
-        _, _, up = _slide_state(sin_n[found], cos_n[found], w2[found], t_n[found], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
-        f_hi = _slide_margin(sin_n[found], w2[found], up, mode, rho, g)
+        _, _, up = _slide_state(work[sin_n, found - 1], work[cos_n, found - 1], work[w2, found - 1], work[t_n, found - 1], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+        f_lo = min(_slide_margin(work[sin_n, found - 1], work[w2, found - 1], up, mode, rho, g), -1e-300)
+        _, _, up = _slide_state(work[sin_n, found], work[cos_n, found], work[w2, found], work[t_n, found], direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
+        f_hi = _slide_margin(work[sin_n, found], work[w2, found], up, mode, rho, g)
         # the bracket is shrunk to the ODE's EVENT_TIME_TOL (as dx = dt |omega| / |half|):
         # below it the margin is round-off (the slip is a difference of m/s-sized terms)
-        x_tol = EVENT_TIME_TOL * math.sqrt(rho / g) * math.sqrt(w2[found]) / abs(half)
+        x_tol = EVENT_TIME_TOL * math.sqrt(rho / g) * math.sqrt(work[w2, found]) / abs(half)
         side = 0
         for _ in range(100):
             if x_hi - x_lo <= x_tol or f_hi == f_lo:
@@ -1014,7 +1018,7 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
                 x = 0.5 * (x_lo + x_hi)
             chi = lo + half * (x + 1.0)
             sn = math.sin(chi)
-            w, t = _panel_values(x, xs, weights, w2, t_n, m)
+            w, t = _panel_values(x, xs, weights, work, w2, t_n, m)
             _, _, up = _slide_state(sn, math.cos(chi), w, t, direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
             f = _slide_margin(sn, w, up, mode, rho, g)
             if f > 0.0:
@@ -1032,7 +1036,7 @@ def _slide_closed_form(fpar, px, y, mode, rho, inertia, g, mu, chi_right, chi_le
         nudge = 4e-16
         for _ in range(60):
             chi = hi if x_hi >= 1.0 else lo + half * (x_hi + 1.0)
-            w_end, t_end = _panel_values(x_hi, xs, weights, w2, t_n, m)
+            w_end, t_end = _panel_values(x_hi, xs, weights, work, w2, t_n, m)
             omega, _, up = _slide_state(math.sin(chi), math.cos(chi), w_end, t_end, direction, s_mu, rho, g, vx_a, vy_a, x_a, y_a)
             if _slide_event(chi, omega, up, mode, rho, inertia, g, mu) != 0 or x_hi >= 1.0:
                 break
@@ -1084,31 +1088,47 @@ def pivot_ode(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision
     (:func:`_event_margin`), the predicate deciding which end moves; the step is then taken again, for real, to the event, so that
     the event holds in the state returned (the loop's next pass acts on it).
     """
+    chi_right, chi_left = flat_angles(fpar, n, corner)
+    return pivot_ode_flat(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision, chi_right, chi_left, out, hit)
+
+
+@numba.njit(cache=True)
+def pivot_ode_flat(fpar, n, corner, px, chi0, omega0, slip0, t_left, stop_at_decision, chi_right, chi_left, out, hit):
+    """:func:`pivot_ode` given the corner's ``flat_angles(fpar, n, corner)`` (the roll loop keeps
+    them per corner, as for :func:`pivot_next_flat`)."""
     g = fpar[FP_G]
     mu = fpar[FP_MU]
     c = fpar[FP_DRAG]
     inertia = fpar[FP_INERTIA]
     arc = fpar[FP_CORNER_RADIUS]
     rho, _ = corner_geometry(fpar, corner)
-    chi_right, chi_left = flat_angles(fpar, n, corner)
     time_unit = math.sqrt(rho / g)
     h_max = ODE_MAX_STEP * time_unit
     h_min = ODE_MIN_STEP * time_unit
     t_tol = EVENT_TIME_TOL * time_unit
-    scale = np.empty(4)
+    # one allocation for all the scratch (rows of SLIDE_NODES): seven were about 150 ns of a
+    # rigid-law pivot's 2.7 us (issue 33)
+    buf = np.empty((PIVOT_SCRATCH_ROWS, SLIDE_NODES))
+    scale = buf[0, :4]
     scale[0] = ODE_TOL
     scale[1] = ODE_TOL / time_unit
     scale[2] = ODE_TOL * rho
     scale[3] = ODE_TOL * rho / time_unit
-    y = np.zeros(4)
+    y = buf[1, :4]
+    trial = buf[2, :4]
+    tmp = buf[3, :4]
+    state = buf[4, :6]
+    k = buf[5:12]  # rows 0-6 of the Dormand-Prince stages (the first 4 columns)
+    work = buf[12:22]
+    for i in range(4):
+        y[i] = 0.0
+        trial[i] = 0.0
+        tmp[i] = 0.0
+    for i in range(6):
+        state[i] = 0.0
     y[0] = min(max(chi0, chi_right), chi_left)
     y[1] = omega0
     y[3] = slip0
-    trial = np.zeros(4)
-    tmp = np.zeros(4)
-    k = np.zeros((7, 4))
-    state = np.zeros(6)
-    work = np.empty((10, SLIDE_NODES))
     if abs(slip0) <= SLIP_TOL * math.sqrt(g * rho):
         y[3] = 0.0
     mode = MODE_STICK if y[3] == 0.0 else (1 if y[3] > 0.0 else -1)

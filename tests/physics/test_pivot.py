@@ -20,7 +20,9 @@ from dice_sweep.physics.pivot import (
     pivot_angle_at,
     pivot_energy,
     pivot_next,
+    flat_angles,
     pivot_ode,
+    pivot_ode_flat,
     pivot_time,
 )
 
@@ -392,6 +394,26 @@ def test_drag_free_slide_towards_a_wall_meets_it_as_the_ode_does():
     assert abs(cf[1] - ode[1]) < 1e-11 / t_unit
     assert abs(cf[3] - ode[3]) < 1e-11 * TABLE1_RADIUS
     assert abs(cf[4] - ode[4]) < 1e-11 * TABLE1_RADIUS / t_unit
+
+def test_pivot_ode_flat_is_pivot_ode_given_the_flat_angles():
+    """The roll loop passes each corner's flat angles (kept per corner) and pivot_ode_flat takes
+    its scratch in one allocation: the same pivots, bit for bit, as pivot_ode, on slides that
+    stop and stick, slip again, land or lift off (a loaded die's corners: flat angles that differ
+    from corner to corner). Run in a row, so that a call could only see its own scratch."""
+    rng = np.random.default_rng(5)
+    fpar, _ = make_params(sides=5, model="rigid", beta_t=0.0, friction=0.5, com_offset=(0.002, -0.001))
+    for _ in range(20):
+        corner = int(rng.integers(5))
+        chi0 = rng.uniform(math.pi / 4, 3 * math.pi / 4)
+        args = (fpar, 5, corner, 0.0, chi0, rng.uniform(-2.0, 2.0) / T_UNIT, rng.choice([0.0, rng.uniform(-0.3, 0.3)]), 10.0, True)
+        got = []
+        for flats in (None, flat_angles(fpar, 5, corner)):
+            out = np.zeros(5)
+            hit = np.zeros(2, np.int64)
+            kind = pivot_ode(*args, out, hit) if flats is None else pivot_ode_flat(*args, *flats, out, hit)
+            got.append((kind, tuple(hit), out.tobytes()))
+        assert got[0] == got[1]
+
 
 # --- pivots with friction, in whole rolls (issue 4) ----------------------------------------------
 
