@@ -13,8 +13,9 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
+# on both cores (pytest-xdist): one process for the whole suite took 14 min on the 2-core machine
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal
 
 # the property tests with fresh random examples (`make test` draws the same ones every run)
 test-explore: $(STAMP)
