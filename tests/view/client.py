@@ -17,7 +17,8 @@ ZOOM = {"xmin": 20.0, "xmax": 35.0, "ymin": 0.05, "ymax": 0.12, "nx": 10, "ny": 
 
 def get(server, target, headers=None):
     """(status, headers, body) of GET target, sent as written (no normalising of ..)."""
-    connection = http.client.HTTPConnection(*server.server_address[:2], timeout=60)
+    # a zoom may compile or roll for minutes on a loaded machine: the timeout only stops a hang
+    connection = http.client.HTTPConnection(*server.server_address[:2], timeout=600)
     try:
         connection.request("GET", target, headers=headers or {})
         response = connection.getresponse()
