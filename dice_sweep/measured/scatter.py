@@ -406,12 +406,17 @@ def _shape_loglik(theta, corner, u, y, n, power, weights=None):
     return float(weights @ total), grad
 
 
-def _shape_fit(arrays, power, weights, starts):
-    """(theta, log-likelihood) of the best mixture law from ``starts`` (thetas), impacts weighted."""
+def _shape_bounds():
+    return [(0.0, 1.0)] * 4 + [(0.0, MAX_TAIL_SHARE), (1.0, registry.MAX_TAIL_FACTOR), (MIN_SPIN, registry.MAX_SPIN)]
+
+
+def _shape_fit(arrays, power, weights, starts, bounds=None):
+    """(theta, log-likelihood) of the best mixture law from ``starts`` (thetas), impacts
+    weighted, within ``bounds`` (default: every parameter free)."""
     from scipy.optimize import minimize
 
     corner, u, y, n = arrays[:4]
-    bounds = [(0.0, 1.0)] * 4 + [(0.0, MAX_TAIL_SHARE), (1.0, registry.MAX_TAIL_FACTOR), (MIN_SPIN, registry.MAX_SPIN)]
+    bounds = bounds or _shape_bounds()
 
     def cost(theta):
         value, grad = _shape_loglik(theta, corner, u, y, n, power, weights)
@@ -430,14 +435,15 @@ def excess_kurtosis(w, k):
     return 3.0 * (1.0 - w + w * k**4) / (1.0 - w + w * k * k) ** 2 - 3.0
 
 
-def estimate_shape(residuals, *, speed, seed=0, draws=SHAPE_BOOTSTRAP, gaussian=None):
+def estimate_shape(residuals, *, speed, seed=0, draws=SHAPE_BOOTSTRAP):
     """The mixture law of the jump by maximum likelihood of the clean impacts' per-component
     residuals (Gaussian components of the law's variance plus their noise share): floor and
     sigma per kind, the power (best of SHAPE_POWERS), and the shape shared by both kinds: the
     tail's share w and factor k and the spin factor s. Intervals: bootstrap over tracks at the
-    power chosen (the power's own interval: :func:`estimate_spreads`'). ``gaussian``: the
-    isotropic Gaussian law's log-likelihood on the same impacts is reported for comparison when
-    given as True. Returns a JSON-ready dict, or None with fewer than 3 tracks."""
+    power chosen (the power's own interval: :func:`estimate_spreads`'), and for comparison the
+    isotropic Gaussian law's log-likelihood at that power on the same impacts. Returns a
+    JSON-ready dict (floors and sigmas in units of ``speed``, as [scatter] takes them), or None
+    with fewer than 3 tracks."""
     arrays = _shape_arrays(residuals, speed)
     corner, u, y, n, track, tracks = arrays
     if tracks < 3:
@@ -450,7 +456,8 @@ def estimate_shape(residuals, *, speed, seed=0, draws=SHAPE_BOOTSTRAP, gaussian=
         profile[power] = _shape_fit(arrays, power, ones, [np.array(line + [w, k, 1.0]) for w, k in SHAPE_STARTS])
     power = max(profile, key=lambda p: profile[p][1])
     theta, loglik = profile[power]
-    null = _shape_fit(arrays, power, ones, [np.array(list(theta[:4]) + [0.0, 1.0, 1.0])]) if gaussian else None
+    bounds = _shape_bounds()
+    null = _shape_fit(arrays, power, ones, [np.array(list(theta[:4]) + [0.0, 1.0, 1.0])], bounds[:4] + [(0.0, 0.0), (1.0, 1.0), (1.0, 1.0)])
     rng = np.random.default_rng([seed, 3134])
     counts = rng.multinomial(tracks, np.full(tracks, 1.0 / tracks), size=draws).astype(float)
     boot = np.array([_shape_fit(arrays, power, c[track], [theta])[0] for c in counts])
@@ -467,8 +474,7 @@ def estimate_shape(residuals, *, speed, seed=0, draws=SHAPE_BOOTSTRAP, gaussian=
            "excess_kurtosis": entry(excess_kurtosis(theta[4], theta[5]), kurt)}
     for j, kind in enumerate(KINDS):
         out[kind] = {"floor": entry(theta[2 * j], boot[:, 2 * j], sqrt=True), "value": entry(theta[2 * j + 1], boot[:, 2 * j + 1], sqrt=True)}
-    if null is not None:
-        out["gaussian_log_likelihood"] = null[1]  # the same power, w = 0, s = 1: the law before the shape
+    out["gaussian_log_likelihood"] = null[1]  # the same power, w = 0, s = 1: the law before the shape
     return out
 
 
@@ -514,7 +520,7 @@ def fitted_scatter(trackset, cfg, effects, params, *, confirm_fraction, seed=0, 
             f"{kind} {s['value']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}], floor {s['floor']:.3f} [{s['floor_ci95'][0]:.3f}, "
             f"{s['floor_ci95'][1]:.3f}] sqrt(gR) ({s['impacts']} impacts)" for kind, s in ((k, spreads[k]) for k in KINDS)
             if s["value"] is not None) + f"; power {spreads['power']['value']:g} {spreads['power']['ci95']}")
-    shape = estimate_shape(residuals, speed=speed, seed=seed, gaussian=True)
+    shape = estimate_shape(residuals, speed=speed, seed=seed)
     if log and shape:
         log("its shape (mixture law, power {power:g}): tail share {w[value]:.3f} {w[ci95]}, tail factor {k[value]:.2f} {k[ci95]}, spin "
             "{s[value]:.2f} {s[ci95]}; log-likelihood {gain:+.1f} over the Gaussian at that power".format(
