@@ -23,6 +23,7 @@ DROPS = 80
 
 
 DRAWS = 200  # bootstrap resamples here (2000 in use): an interval's end moves by about 0.1 of its width between such runs
+SHAPE_DRAWS = 100  # the same for the shape (500 in use: each resample is a 7-parameter fit); its ends move by about 0.15 of the width
 TRUTHS = {  # name: (seed, truth's [scatter] keys); one set of drops and residuals each, shared by the tests
     "gaussian": (11, dict(scatter_corner=SPREAD, scatter_flat=SPREAD)),
     "power": (41, dict(scatter_corner=0.02, scatter_flat=0.02, scatter_floor=0.05, scatter_power=2.0)),
@@ -66,7 +67,7 @@ def estimate(residuals_of, name):
 
 def shape(residuals_of, name):
     residuals, speed = residuals_of(name)
-    return estimate_shape(residuals, speed=speed, seed=TRUTHS[name][0], draws=DRAWS)
+    return estimate_shape(residuals, speed=speed, seed=TRUTHS[name][0], draws=SHAPE_DRAWS)
 
 
 def test_the_interval_covers_the_true_spread(residuals_of):
