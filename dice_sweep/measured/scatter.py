@@ -30,6 +30,10 @@ given (calibrate's impacts and cleanliness rules):
 
 What this sigma holds: every way the real impact differs from the fitted law's, systematic
 or random, at the scale of the approach speed. That is what a forecast's ensemble lacks.
+
+The jump's shape (:func:`estimate_shape`, issue 31's fourth pass): the same impacts component
+by component under the mixture law (a share w of impacts k times wider, the spin component c
+times the others; docs/measured_method.md, "The jump's shape"), by its own likelihood.
 """
 
 import math
