@@ -27,11 +27,13 @@ from dataclasses import dataclass
 
 __all__ = ["ConfigKey", "Param", "Effect", "EFFECTS", "NOISE_MODELS", "BASE_PARAMS", "effect", "noise_model", "config_key_specs",
            "set_key", "get_key", "declared_effects", "with_values", "param", "names", "MAX_SCATTER", "MAX_DRAWS", "MAX_SEED",
-           "MAX_POWER", "SCATTER_KINDS", "scatter_spread_keys", "scatter_law_keys"]
+           "MAX_POWER", "MAX_TAIL_FACTOR", "MAX_SPIN", "SCATTER_KINDS", "SCATTER_SHAPE", "scatter_spread_keys", "scatter_law_keys"]
 
 MAX_SCATTER = 1.0  # relative spread of an impact's velocity jump: beyond 1 the jump exceeds the approach
 MAX_DRAWS = 4096  # draws per start of a stochastic sweep
 MAX_SEED = 2**53 - 1  # the kernel keeps the seed in a float64 slot, exact below 2^53
+MAX_TAIL_FACTOR = 10.0  # the wide jumps' sd over the law's: 10 already reaches the approach speed at every real impact
+MAX_SPIN = 5.0  # the spin component's sd over the other two's
 MAX_POWER = 4.0  # the scatter's power of the approach speed: u^4 at sqrt(g R) ... 5 sqrt(g R) spans 600x, wider than any drop
 
 
@@ -410,6 +412,20 @@ _POWER = ConfigKey("scatter", "power", 1.0, "", low=0.0, high=MAX_POWER, slot="F
                    help="the power of the approach speed in the spread term, both kinds (1: spread u; 2: fast impacts scatter more)")
 
 
+# The jump's shape, not its size (a scale on the law leaves these as they are); each null value
+# is today's isotropic Gaussian, bit for bit. A share of impacts jumps wider (a two-component
+# scale mixture: heavy tails), and the spin component may scatter more or less than the velocity.
+_SHAPE = (
+    ConfigKey("scatter", "tail_share", 0.0, "", low=0.0, high=1.0, slot="FP_SCATTER_TAIL_SHARE",
+              help="the share of impacts whose jump is wide (0: every jump of the law's sd)"),
+    ConfigKey("scatter", "tail_factor", 1.0, "", low=1.0, high=MAX_TAIL_FACTOR, slot="FP_SCATTER_TAIL_FACTOR",
+              help="a wide jump's sd over the law's (1: no tail)"),
+    ConfigKey("scatter", "spin", 1.0, "", low=0.0, high=MAX_SPIN, slot="FP_SCATTER_SPIN",
+              help="the spin component's sd (of sqrt(I/M) omega) over the velocity components' (1: isotropic)"),
+)
+SCATTER_SHAPE = tuple(key.name for key in _SHAPE)  # the shape keys, in the registry's order
+
+
 def scatter_spread_keys(kind=None):
     """The [scatter] keys a factor on the law multiplies (spreads and floors), of one landing
     kind (its spread, then its floor) or of all, kind by kind."""
@@ -419,7 +435,7 @@ def scatter_spread_keys(kind=None):
 
 def scatter_law_keys():
     """Every [scatter] key of the law itself (spreads, floors, then its form), not draws or seed."""
-    return scatter_spread_keys() + (_POWER.name,)
+    return scatter_spread_keys() + (_POWER.name,) + SCATTER_SHAPE
 
 
 # Random laws around the deterministic one: declared like effects (keys, units, ranges, null
@@ -428,12 +444,14 @@ NOISE_MODELS = (
     Effect(
         "scattered_impacts", "noise",
         "each impact's velocity jump scattered around the deterministic law: a Gaussian of sd min(sqrt((spread sqrt(g R) "
-        "(u / sqrt(g R))^power)^2 + (floor sqrt(g R))^2), u) per component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed "
+        "(u / sqrt(g R))^power)^2 + (floor sqrt(g R))^2), u) per component of (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed; "
+        "a share tail_share of impacts tail_factor times wider (capped at u), the spin component spin times the others "
         "(docs/physics.md, \"Scattered impacts\"); a sweep rolls each start `draws` times on streams of `seed`",
         params=tuple(param for _, param in _SPREADS),
         config_keys=(
             *(key for key, _ in _SPREADS),
             _POWER,
+            *_SHAPE,
             ConfigKey("scatter", "draws", 1, "", low=1, high=MAX_DRAWS, help="rolls per start of a sweep (> 1: a probability sweep)"),
             ConfigKey("scatter", "seed", 0, "", low=0, high=MAX_SEED, slot="FP_STREAM_SEED", help="the random streams' seed"),
         ),

@@ -20,7 +20,7 @@ from dice_sweep.config import load_config
 from dice_sweep.effects import scatter_law_keys
 from dice_sweep.sweep import SweepJob, run_sweep
 
-LAW_KEYS = scatter_law_keys()  # what the --spreads file gives: spreads, floors and the power
+LAW_KEYS = scatter_law_keys()  # what the --spreads file gives: spreads, floors, the power and the shape
 TARGET_SECONDS = 60.0  # issue 31 item 5, at 512 x 512, 64 draws, 2 cores
 
 

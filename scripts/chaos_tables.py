@@ -363,7 +363,7 @@ def scatter_table(runner, args):
                 f"{p.basin_entropy:.3f} ({p.basin_entropy_corrected:.3f})", f"{math.log(sweep.sides):.3f}",
                 f"{100 * p.no_answer:.2f} %", f"{100 * same:.1f} %" if scale_num == num else "",
             ])
-    header = ["map", "pixels", "draws M", "corner: spread, floor; flat: spread, floor; power", "predictable: p >= 0.9 [range from the M draws]",
+    header = ["map", "pixels", "draws M", "corner: spread, floor; flat: spread, floor; power; tail share, tail factor, spin", "predictable: p >= 0.9 [range from the M draws]",
               "mean p(most likely)", "basin entropy, nats (Miller-Madow)", "fair die ln n", "no answer",
               "most likely side = deterministic side"]
     keys = ", ".join(f"{key} = {getattr(scatter, key):.4g}" for key in effect_registry.scatter_law_keys())

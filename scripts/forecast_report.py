@@ -75,19 +75,20 @@ def with_scatter(args, fit):
     when it has both, else a copy in out/forecast/ with what is missing estimated on the fit's
     selection tracks only (for a cross-fitted diagnose, the half its held-out model was fitted
     on): the law by dice_sweep.measured.scatter (its power chosen by the clean impacts'
-    likelihood), then, for that power and each of FORM_POWERS (the law's best spreads and floors
-    at each), one factor on the spreads and floors by the selection tracks' forecasts from every
-    flight (dice_sweep.measured.forecast.fit_scatter_scale); the power and factor whose summed
-    log score is best are kept, every candidate in ``scatter_form``."""
+    likelihood, and its mixture form: heavy tail and spin factor), then, for the Gaussian law at
+    that power and at each of FORM_POWERS (the law's best spreads and floors at each) and for the
+    mixture law, one factor on the spreads and floors by the selection tracks' forecasts from
+    every flight (dice_sweep.measured.forecast.fit_scatter_scale); the form and factor whose
+    summed log score is best are kept, every candidate in ``scatter_form``."""
     data = json.loads(Path(fit).read_text())
     if data.get("scatter") and data.get("scatter_scale"):
         return Path(fit)
     from dice_sweep.config import load_config
-    from dice_sweep.effects import SCATTER_KINDS
+    from dice_sweep.effects import SCATTER_KINDS, SCATTER_SHAPE, scatter_spread_keys
     from dice_sweep.measured import forecast as fc
     from dice_sweep.measured.noise import tracking_noise
     from dice_sweep.measured.report import jsonable
-    from dice_sweep.measured.scatter import fitted_scatter, scatter_section
+    from dice_sweep.measured.scatter import fitted_scatter, scatter_section, shape_law
     from dice_sweep.measured.tracks import load_tracks
 
     def say(line):
@@ -96,7 +97,7 @@ def with_scatter(args, fit):
     cfg = load_config(CONFIG)
     source = fc.parse_fit(data, fit, cfg, 0.3, 0)
     tracks = load_tracks(args.data, sides=cfg.die.sides, circumradius=cfg.die.circumradius, angle="auto")
-    if not (data.get("scatter") or {}).get("power", {}).get("by_power"):  # none, or one from before the power existed
+    if not (data.get("scatter") or {}).get("power", {}).get("by_power") or "shape" not in data["scatter"]:  # none, or from before the power or shape
         data["scatter"] = fitted_scatter(tracks, cfg, source.effects, source.params, confirm_fraction=source.confirm_fraction,
                                          seed=source.seed, log=say)
     table, _, sigma = tracking_noise(tracks, cfg)
@@ -106,28 +107,39 @@ def with_scatter(args, fit):
     bounces = [k for k, count in enumerate(fc.flight_counts(prepared)) if count >= fc.MIN_BOUNCE_TRACKS]
     law = data["scatter"]
     residual_power = law["power"]["value"]
+    forms = [("gaussian", power, {**{name: law["power"]["by_power"][f"{power:g}"][kind][key] for kind in SCATTER_KINDS
+                                     for key, name in zip(("value", "floor"), scatter_spread_keys(kind))}, "power": power})
+             for power in sorted({residual_power, *FORM_POWERS})]
+    if law.get("shape"):  # the heavy-tailed, anisotropic law at its own power (dice_sweep.measured.scatter.estimate_shape)
+        forms.append(("mixture", law["shape"]["power"], shape_law(law["shape"])))
     candidates = []
-    for power in sorted({residual_power, *FORM_POWERS}):
-        at = law["power"]["by_power"][f"{power:g}"]
-        spreads = {**{name: at[kind][key] for kind in SCATTER_KINDS for key, name in zip(("value", "floor"), (kind, f"{kind}_floor"))},
-                   "power": power}
+    for form, power, spreads in forms:
         found = fc.fit_scatter_scale(prepared, cfg, dataclasses.replace(source, scatter=spreads), bounces, sigma=sigma, observed=observed,
                                      workers=len(os.sched_getaffinity(0)), log=say)
         best = max(found["mean_log_score"]) * found["pairs"]
-        say(f"power {power:g}: scale {found['value']:.3f} {found['ci95']}, summed log score at the best grid factor {best:.2f}")
-        candidates.append({"power": power, "law": at, "scale": found, "summed_log_score": best})
+        say(f"{form} law, power {power:g}: scale {found['value']:.3f} {found['ci95']}, summed log score at the best grid factor {best:.2f}")
+        candidates.append({"form": form, "power": power, "law": spreads, "scale": found, "summed_log_score": best})
     chosen = max(candidates, key=lambda c: c["summed_log_score"])
-    for kind in SCATTER_KINDS:
-        law[kind] = {**law[kind], **chosen["law"][kind]}  # the chosen power's spreads and floors (intervals: the residuals' power)
+    if chosen["form"] == "mixture":  # its spreads, floors and shape, with the shape fit's intervals
+        for kind in SCATTER_KINDS:
+            law[kind] = {**law[kind], **{key: law["shape"][kind][key]["value"] for key in ("value", "floor")},
+                         **{f"{key}_ci95" if key == "floor" else "ci95": law["shape"][kind][key]["ci95"] for key in ("value", "floor")}}
+        for name in SCATTER_SHAPE:
+            law[name] = law["shape"][name]
+    else:
+        for kind in SCATTER_KINDS:  # the chosen power's spreads and floors (intervals: the residuals' power)
+            law[kind] = {**law[kind], **law["power"]["by_power"][f"{chosen['power']:g}"][kind]}
     law["power"] = {**law["power"], "value": chosen["power"], "from_residuals": residual_power}
     law["toml"] = scatter_section(law)  # the [scatter] section of the law kept (unscaled, as the JSON's spreads)
     data["scatter_scale"] = chosen["scale"]
-    data["scatter_form"] = {"candidates": [{k: c[k] for k in ("power", "law", "summed_log_score")} | {"scale": c["scale"]["value"],
-                                            "scale_ci95": c["scale"]["ci95"]} for c in candidates], "chosen_power": chosen["power"],
-                            "rule": "the power of the clean impacts' likelihood and each of " + ", ".join(f"{p:g}" for p in FORM_POWERS)
-                                    + ", each with its best spreads and floors and its own scale; the best summed log score of the "
-                                    "selection tracks' forecasts (at the best grid factor) chooses; held-out tracks take no part"}
-    say(f"law's power chosen by the selection tracks' outcomes: {chosen['power']:g}, scale {chosen['scale']['value']:.3f}")
+    data["scatter_form"] = {"candidates": [{k: c[k] for k in ("form", "power", "law", "summed_log_score")} | {
+                                "scale": c["scale"]["value"], "scale_ci95": c["scale"]["ci95"], "mean_log_score": c["scale"]["mean_log_score"]}
+                                           for c in candidates], "chosen_power": chosen["power"], "chosen_form": chosen["form"],
+                            "rule": "Gaussian laws at the power of the clean impacts' likelihood and each of " + ", ".join(f"{p:g}" for p in FORM_POWERS)
+                                    + ", each with its best spreads and floors, and the mixture law (heavy tail, spin factor) of the "
+                                    "clean impacts' likelihood, each with its own scale; the best summed log score of the selection "
+                                    "tracks' forecasts (at the best grid factor) chooses; held-out tracks take no part"}
+    say(f"law chosen by the selection tracks' outcomes: {chosen['form']}, power {chosen['power']:g}, scale {chosen['scale']['value']:.3f}")
     path = OUT / "fit_with_scatter.json"
     path.write_text(json.dumps(jsonable(data), indent=1))
     return path
@@ -350,9 +362,11 @@ def answer(report, scan, chaos, form=None):
             f"factor whose forecasts of the {scale['tracks']} selection tracks from flights {', '.join(map(str, scale['bounces']))} "
             f"({scale['pairs']} track-flight pairs) have the best summed log score (a proper score; held-out tracks take no part)"
             + (", at the end of the factors tried" if scale["at_grid_end"] else "")
-            + ("" if not form else ". The law's form, its power of the approach speed, was chosen the same way: "
-               + "; ".join(f"power {c['power']:g} (its own factor {c['scale']:.3f}): summed log score {c['summed_log_score']:.2f}"
-                           for c in form["candidates"]) + f"; kept: {form['chosen_power']:g}")
+            + ("" if not form else ". The law's form (Gaussian or the mixture with a heavy tail and a spin factor, and its power of "
+               "the approach speed) was chosen the same way: "
+               + "; ".join(f"{c.get('form', 'gaussian')}, power {c['power']:g} (its own factor {c['scale']:.3f}): summed log score "
+                           f"{c['summed_log_score']:.2f}" for c in form["candidates"])
+               + f"; kept: {form.get('chosen_form', 'gaussian')}, power {form['chosen_power']:g}")
             + ". docs/dev/forecast_flight1.md says why the forecast from flight 1 was overconfident with the loop's earlier fit "
             "(its corner law's floor, which the clean impacts hardly pin down) and what was measured on the selection tracks.",
             "",

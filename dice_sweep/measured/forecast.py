@@ -164,8 +164,9 @@ def parse_fit(data, path, cfg, confirm_fraction, seed):
 
 
 def _scatter_of(data, path):
-    """{"corner": s, "flat": s, "corner_floor": f, "flat_floor": f, "power": p} from a fit JSON's
-    ``scatter`` (a JSON from before the power existed: p = 1, the law it was estimated with),
+    """{"corner": s, "flat": s, "corner_floor": f, "flat_floor": f, "power": p, "tail_share": w,
+    "tail_factor": k, "spin": c} from a fit JSON's ``scatter`` (a JSON from before the power or
+    the shape existed: their null values, the law it was estimated with),
     the spreads and floors times the JSON's ``scatter_scale`` when it has one
     (:func:`fit_scatter_scale`); None without one."""
     record = data.get("scatter")
@@ -185,13 +186,21 @@ def _scatter_of(data, path):
     power = power.get("value") if isinstance(power, dict) else None
     if not _number(power) or not 0.0 <= power <= registry.MAX_POWER:
         raise _fit_error(path, f"scatter.power.value is not in [0, {registry.MAX_POWER:g}]")
+    shape = {}
+    for name in registry.SCATTER_SHAPE:  # the jump's shape (absent: the null value, the Gaussian law)
+        key = registry.config_key_specs()["scatter"][name]
+        entry = record.get(name) if isinstance(record, dict) else None
+        value = entry.get("value") if isinstance(entry, dict) else (key.default if entry is None else None)
+        if not _number(value) or not key.low <= value <= key.high:
+            raise _fit_error(path, f"scatter.{name}.value is not in [{key.low:g}, {key.high:g}]")
+        shape[name] = float(value)
     scale = _scale_of(data)
     if scale is not None:  # the factor fit_scatter_scale chose on the selection tracks
         value = scale.get("value") if isinstance(scale, dict) else None
         if not _number(value) or not 0.0 < value <= MAX_SCALE:
             raise _fit_error(path, f"scatter_scale.value is not in (0, {MAX_SCALE:g}]")
         spreads = scaled_scatter(spreads, value)
-    return {**spreads, "power": float(power)}
+    return {**spreads, "power": float(power), **shape}
 
 
 def _scale_of(data):

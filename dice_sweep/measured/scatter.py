@@ -30,6 +30,10 @@ given (calibrate's impacts and cleanliness rules):
 
 What this sigma holds: every way the real impact differs from the fitted law's, systematic
 or random, at the scale of the approach speed. That is what a forecast's ensemble lacks.
+
+The jump's shape (:func:`estimate_shape`, issue 31's fourth pass): the same impacts component
+by component under the mixture law (a share w of impacts k times wider, the spin component c
+times the others; docs/measured_method.md, "The jump's shape"), by its own likelihood.
 """
 
 import math
@@ -46,7 +50,8 @@ from dice_sweep.physics.layout import COUNT_COLUMNS, EVENT_IMPACT, REC_EVENT, RE
 from dice_sweep.physics.params import FP_INERTIA, FP_TMAX, IP_CONTINUE, pack_params
 from dice_sweep.physics.scatter import FLAT_TILT
 
-__all__ = ["ImpactResidual", "impact_residuals", "estimate_spreads", "scatter_section", "fitted_scatter", "jump_sd", "KINDS", "POWERS"]
+__all__ = ["ImpactResidual", "impact_residuals", "estimate_spreads", "estimate_shape", "shape_law", "excess_kurtosis", "scatter_section",
+           "fitted_scatter", "jump_sd", "KINDS", "POWERS", "SHAPE_POWERS"]
 
 BACKOFF = 2e-3  # s (true time) before the fitted contact the kernel starts: clear of the table
 REPLICATES = 16  # noisy refits per impact: half probe its stability, half measure its noise share
@@ -349,6 +354,140 @@ def estimate_spreads(residuals, *, speed, seed=0, draws=BOOTSTRAP, power=None):
     return out
 
 
+# The jump's shape (issue 31, fourth pass): a share w of impacts jumps k times wider (a scale
+# mixture of two Gaussians: heavy tails) and the spin component s times the others (anisotropy).
+SHAPE_POWERS = tuple(0.5 * k for k in range(9))  # the power's profile grid of the shape fit, 0 to MAX_POWER
+SHAPE_BOOTSTRAP = 500  # resamples of the tracks for the shape's intervals (each a 7-parameter fit, about 15 ms)
+MAX_TAIL_SHARE = 0.5  # the wide component is the smaller one by definition (w and 1 - w with k and 1/k are one law)
+MIN_SPIN = 0.05  # the fit's lower bound on s: 0 would leave the spin's likelihood undefined without noise
+SHAPE_STARTS = ((0.2, 3.0), (0.05, 2.0), (0.3, 1.5))  # (w, k) the full sample's fit starts from
+
+
+def _shape_arrays(residuals, speed):
+    """Per clean impact with per-component residuals: corner (bool), (u / speed)^2, squared
+    residual and noise share per component in units of speed^2 (n, 3), its track's row."""
+    rows = [r for r in residuals if r.components2 and r.probe2 <= 3.0 * UNSTABLE**2 * r.approach**2]
+    trajs = sorted({r.traj for r in rows})
+    track_of = {t: k for k, t in enumerate(trajs)}
+    return (np.array([r.kind == "corner" for r in rows]), np.array([r.approach for r in rows]) / speed,
+            np.array([r.components2 for r in rows]) / speed**2, np.array([r.noise_components2 for r in rows]) / speed**2,
+            np.array([track_of[r.traj] for r in rows], dtype=int), len(trajs))
+
+
+def _shape_loglik(theta, corner, u, y, n, power, weights=None):
+    """Log-likelihood per impact of the mixture law at theta = (floor^2, sigma^2 of corner,
+    then of flat, w, k, s), all in units of speed: the narrow jump's variance
+    min(floor^2 + sigma^2 u^(2 power), u^2) per velocity component, the wide one's
+    min(k^2 that, u^2), the spin component's s^2 times either, plus each component's noise
+    share. With ``weights``: (their weighted sum, its gradient in theta) instead."""
+    a_c, b_c, a_f, b_f, w, k, s = theta
+    grow = u ** (2.0 * power)
+    law = np.where(corner, a_c + b_c * grow, a_f + b_f * grow)
+    scale = np.array([1.0, 1.0, s * s])
+    parts = []
+    for factor in (1.0, k * k):
+        jump = np.minimum(factor * law, u * u)
+        v = jump[:, None] * scale + n + _TINY
+        parts.append((-0.5 * np.sum(np.log(v) + y / v, axis=1), 0.5 * (y - v) / (v * v), jump, factor * law < u * u))
+    if w <= 0.0:
+        total, wide = parts[0][0], np.zeros(u.size)
+    else:
+        total = np.logaddexp(math.log1p(-w) + parts[0][0], math.log(w) + parts[1][0])
+        wide = np.exp(math.log(w) + parts[1][0] - total)  # each impact's probability of being wide
+    if weights is None:
+        return total
+    grad = np.zeros(7)
+    for tail, ((_, g, jump, free), factor, share) in enumerate(zip(parts, (1.0, k * k), (1.0 - wide, wide))):
+        by_law = weights * share * free * factor * (g @ scale)  # d/d law
+        grad[:4] += [np.sum(by_law * corner), np.sum(by_law * corner * grow), np.sum(by_law * ~corner), np.sum(by_law * ~corner * grow)]
+        grad[6] += np.sum(weights * share * g[:, 2] * jump) * 2.0 * s
+        if tail:
+            grad[5] += np.sum(weights * share * free * law * (g @ scale)) * 2.0 * k
+    if w > 0.0:
+        grad[4] = np.sum(weights * (wide / w - (1.0 - wide) / (1.0 - w)))
+    else:  # at w = 0 the wide component's density, less the narrow's, is the slope
+        grad[4] = np.sum(weights * (np.exp(parts[1][0] - parts[0][0]) - 1.0))
+    return float(weights @ total), grad
+
+
+def _shape_bounds():
+    return [(0.0, 1.0)] * 4 + [(0.0, MAX_TAIL_SHARE), (1.0, registry.MAX_TAIL_FACTOR), (MIN_SPIN, registry.MAX_SPIN)]
+
+
+def _shape_fit(arrays, power, weights, starts, bounds=None):
+    """(theta, log-likelihood) of the best mixture law from ``starts`` (thetas), impacts
+    weighted, within ``bounds`` (default: every parameter free)."""
+    from scipy.optimize import minimize
+
+    corner, u, y, n = arrays[:4]
+    bounds = bounds or _shape_bounds()
+
+    def cost(theta):
+        value, grad = _shape_loglik(theta, corner, u, y, n, power, weights)
+        return -value, -grad
+
+    best = None
+    for start in starts:
+        got = minimize(cost, start, jac=True, method="TNC", bounds=bounds)  # L-BFGS-B: 40x slower with BLAS threads on a busy machine
+        if best is None or -got.fun > best[1]:
+            best = (np.clip(got.x, [b[0] for b in bounds], [b[1] for b in bounds]), -float(got.fun))
+    return best
+
+
+def excess_kurtosis(w, k):
+    """A velocity component's excess kurtosis under the mixture (0: Gaussian, the null)."""
+    return 3.0 * (1.0 - w + w * k**4) / (1.0 - w + w * k * k) ** 2 - 3.0
+
+
+def estimate_shape(residuals, *, speed, seed=0, draws=SHAPE_BOOTSTRAP):
+    """The mixture law of the jump by maximum likelihood of the clean impacts' per-component
+    residuals (Gaussian components of the law's variance plus their noise share): floor and
+    sigma per kind, the power (best of SHAPE_POWERS), and the shape shared by both kinds: the
+    tail's share w and factor k and the spin factor s. Intervals: bootstrap over tracks at the
+    power chosen (the power's own interval: :func:`estimate_spreads`'), and for comparison the
+    isotropic Gaussian law's log-likelihood at that power on the same impacts. Returns a
+    JSON-ready dict (floors and sigmas in units of ``speed``, as [scatter] takes them), or None
+    with fewer than 3 tracks."""
+    arrays = _shape_arrays(residuals, speed)
+    corner, u, y, n, track, tracks = arrays
+    if tracks < 3:
+        return None
+    mean = max(float(np.mean(np.sum(y - n, axis=1))) / 3.0, 1e-6)  # the mean excess per component, half in the floor
+    ones = np.ones(u.size)
+    profile = {}
+    for power in SHAPE_POWERS:
+        line = [0.5 * mean, 0.5 * mean / max(float(np.mean(u ** (2.0 * power))), 1e-6)] * 2
+        profile[power] = _shape_fit(arrays, power, ones, [np.array(line + [w, k, 1.0]) for w, k in SHAPE_STARTS])
+    power = max(profile, key=lambda p: profile[p][1])
+    theta, loglik = profile[power]
+    bounds = _shape_bounds()
+    null = _shape_fit(arrays, power, ones, [np.array(list(theta[:4]) + [0.0, 1.0, 1.0])], bounds[:4] + [(0.0, 0.0), (1.0, 1.0), (1.0, 1.0)])
+    rng = np.random.default_rng([seed, 3134])
+    counts = rng.multinomial(tracks, np.full(tracks, 1.0 / tracks), size=draws).astype(float)
+    boot = np.array([_shape_fit(arrays, power, c[track], [theta])[0] for c in counts])
+    kurt = excess_kurtosis(boot[:, 4], boot[:, 5])
+
+    def entry(value, samples, sqrt=False):
+        low, high = np.percentile(samples, [2.5, 97.5])
+        f = (lambda v: math.sqrt(max(float(v), 0.0))) if sqrt else float
+        return {"value": f(value), "ci95": [f(low), f(high)]}
+
+    out = {"power": power, "impacts": int(u.size), "tracks": tracks, "log_likelihood": loglik, "draws": int(draws),
+           "profile_log_likelihood": {f"{p:g}": profile[p][1] - loglik for p in SHAPE_POWERS},
+           "tail_share": entry(theta[4], boot[:, 4]), "tail_factor": entry(theta[5], boot[:, 5]), "spin": entry(theta[6], boot[:, 6]),
+           "excess_kurtosis": entry(excess_kurtosis(theta[4], theta[5]), kurt)}
+    for j, kind in enumerate(KINDS):
+        out[kind] = {"floor": entry(theta[2 * j], boot[:, 2 * j], sqrt=True), "value": entry(theta[2 * j + 1], boot[:, 2 * j + 1], sqrt=True)}
+    out["gaussian_log_likelihood"] = null[1]  # the same power, w = 0, s = 1: the law before the shape
+    return out
+
+
+def shape_law(shape):
+    """The [scatter] keys (spreads, floors, power and shape) of an :func:`estimate_shape` dict."""
+    law = {name: shape[kind][key]["value"] for kind in KINDS for key, name in zip(("value", "floor"), registry.scatter_spread_keys(kind))}
+    return {**law, "power": shape["power"], **{name: shape[name]["value"] for name in registry.SCATTER_SHAPE}}
+
+
 def jump_sd(law, kind, u):
     """The law's jump sd per component at approach speed u, both in sqrt(g R), capped at u as
     the kernel caps it; ``law``: [scatter] keys (a missing power: 1)."""
@@ -357,13 +496,15 @@ def jump_sd(law, kind, u):
 
 
 def scatter_section(spreads):
-    """The ``[scatter]`` TOML of estimated spreads (a kind without impacts: 0) and the power."""
+    """The ``[scatter]`` TOML of estimated spreads (a kind without impacts: 0), the power and
+    the shape keys the law has (tail_share, tail_factor, spin: {value, ...} entries)."""
     lines = ["[scatter]"]
     for kind in KINDS:
         for key, name in zip(("value", "floor"), registry.scatter_spread_keys(kind)):
             value = spreads[kind][key]
             lines.append(f"{name} = {value if value is not None else 0.0!r}")
     lines.append(f"power = {float(spreads.get('power', {}).get('value', 1.0))!r}")
+    lines += [f"{name} = {float(spreads[name]['value'])!r}" for name in registry.SCATTER_SHAPE if isinstance(spreads.get(name), dict)]
     return "\n".join(lines) + "\n"
 
 
@@ -376,13 +517,20 @@ def fitted_scatter(trackset, cfg, effects, params, *, confirm_fraction, seed=0, 
     select_set, _ = trackset.split(confirm_fraction, seed)
     table, _, sigma = tracking_noise(trackset, cfg)
     residuals = impact_residuals(select_set.tracks, cfg, effects, params, sigma=sigma, table=table, seed=seed)
-    spreads = estimate_spreads(residuals, speed=math.sqrt(float(params.get("g", cfg.world.g)) * cfg.die.circumradius), seed=seed)
+    speed = math.sqrt(float(params.get("g", cfg.world.g)) * cfg.die.circumradius)
+    spreads = estimate_spreads(residuals, speed=speed, seed=seed)
     if log:
         log("scatter of the bounces around the fitted law (selection tracks): " + "; ".join(
             f"{kind} {s['value']:.3f} [{s['ci95'][0]:.3f}, {s['ci95'][1]:.3f}], floor {s['floor']:.3f} [{s['floor_ci95'][0]:.3f}, "
             f"{s['floor_ci95'][1]:.3f}] sqrt(gR) ({s['impacts']} impacts)" for kind, s in ((k, spreads[k]) for k in KINDS)
             if s["value"] is not None) + f"; power {spreads['power']['value']:g} {spreads['power']['ci95']}")
-    return {**spreads, "toml": scatter_section(spreads), "tracks": "selection", "model": MODEL}
+    shape = estimate_shape(residuals, speed=speed, seed=seed)
+    if log and shape:
+        log("its shape (mixture law, power {power:g}): tail share {w[value]:.3f} {w[ci95]}, tail factor {k[value]:.2f} {k[ci95]}, spin "
+            "{s[value]:.2f} {s[ci95]}; log-likelihood {gain:+.1f} over the Gaussian at that power".format(
+                power=shape["power"], w=shape["tail_share"], k=shape["tail_factor"], s=shape["spin"],
+                gain=shape["log_likelihood"] - shape["gaussian_log_likelihood"]))
+    return {**spreads, "shape": shape, "toml": scatter_section(spreads), "tracks": "selection", "model": MODEL}
 
 
 MODEL = ("each impact's velocity jump: the fitted law's plus a Gaussian of sd min(sqrt((sigma sqrt(g R) (u / sqrt(g R))^power)^2 + "

@@ -9,7 +9,11 @@ relative spread and f the floor (m/s; the config's floor times sqrt(g R)) of ``[
 ``flat_floor`` for a landing with a side within FLAT_TILT of the surface (or a two-contact
 impact), else ``corner`` and ``corner_floor``. A jump that would leave the die with more kinetic energy than it brought in, or
 the touching corner still approaching the surface, is drawn again (at most TRIES times; then
-the deterministic outcome stands). docs/physics.md, "Scattered impacts", states the model;
+the deterministic outcome stands). The jump's shape: with probability ``tail_share`` an impact's
+sd is ``tail_factor`` times the law's (still capped at u; the choice is made once per impact,
+its redraws keep it), and the spin component's sd is ``spin`` times the others'. Their null
+values (0, 1, 1) multiply by 1.0 and draw no uniform: a roll stays bit for bit.
+docs/physics.md, "Scattered impacts", states the model;
 dice_sweep/measured/scatter.py estimates sigma from tracked drops.
 
 The random numbers come from a counter-based hash, not a generator with a state: the normal
@@ -36,6 +40,9 @@ from dice_sweep.physics.params import (
     FP_SCATTER_FLAT,
     FP_SCATTER_FLAT_FLOOR,
     FP_SCATTER_POWER,
+    FP_SCATTER_SPIN,
+    FP_SCATTER_TAIL_FACTOR,
+    FP_SCATTER_TAIL_SHARE,
     FP_STREAM_DRAW,
     FP_STREAM_PIXEL,
     FP_STREAM_SEED,
@@ -58,6 +65,9 @@ _UNIT = 2.0**-53  # a 53-bit integer times this is in [0, 1)
 # (below MAX_GRID_NUM^2 = 10^10), below the 2^53 a float64 slot holds exactly
 OFF_GRID_STREAMS = 2**52
 _S12 = np.uint64(12)
+# The counter of impact i's tail uniform is TAIL_COUNTERS + i: clear of the jumps' counters
+# (i VARIATES + ...), so a law with a tail leaves every normal number of a roll where it was
+TAIL_COUNTERS = np.uint64(2**63)
 
 
 @numba.njit(cache=True)
@@ -143,13 +153,18 @@ def scatter_impact(s, fpar, ipar, rx, ry, nx, ny, corner, vx0, vy0, w0, approach
     energy_in = vx0 * vx0 + vy0 * vy0 + inertia * w0 * w0
     key = stream_key(fpar[FP_STREAM_SEED], fpar[FP_STREAM_PIXEL], fpar[FP_STREAM_DRAW])
     # never above the approach itself: a floor on a corner barely touching would only be redrawn
-    size = min(math.sqrt(spread_term(fpar, sigma, approach) ** 2 + floor * floor), approach)
+    wide = 1.0
+    tail = fpar[FP_SCATTER_TAIL_SHARE]
+    if tail > 0.0 and uniform(key, TAIL_COUNTERS + np.uint64(index)) < tail:
+        wide = fpar[FP_SCATTER_TAIL_FACTOR]
+    size = min(math.sqrt(spread_term(fpar, sigma, approach) ** 2 + floor * floor) * wide, approach)
+    spun = size * fpar[FP_SCATTER_SPIN]  # the spin component's sd (times 1.0 at the null: the same float)
     base = np.uint64(index) * np.uint64(VARIATES)
     for attempt in range(TRIES):
         c = base + np.uint64(6 * attempt)
         vx = s[3] + size * normal(key, c)
         vy = s[4] + size * normal(key, c + np.uint64(2))
-        w = s[5] + size * normal(key, c + np.uint64(4)) / lever
+        w = s[5] + spun * normal(key, c + np.uint64(4)) / lever
         leaving = nx * (vx - w * ry) + ny * (vy + w * rx) >= 0.0
         if leaving and vx * vx + vy * vy + inertia * w * w <= energy_in:
             s[3] = vx

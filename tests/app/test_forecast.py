@@ -265,8 +265,9 @@ def test_a_parameter_at_a_bound_and_a_scatter_law_are_reported(drops, tmp_path):
     lines = [line for line in result.output.splitlines() if line.startswith("warning: ")]
     assert len(lines) == 1 and "beta_tangential = -1 at its lower bound" in lines[0], result.output
     report = json.loads(out.read_text())
-    # a JSON from before the law's power existed: the law it was estimated with, power 1
-    assert report["fit"]["scatter"] == {"corner": 0.05, "corner_floor": 0.1, "flat": 0.08, "flat_floor": 0.0, "power": 1.0}
+    # a JSON from before the law's power and shape existed: the law it was estimated with, power 1, Gaussian, isotropic
+    assert report["fit"]["scatter"] == {"corner": 0.05, "corner_floor": 0.1, "flat": 0.08, "flat_floor": 0.0, "power": 1.0,
+                                        "tail_share": 0.0, "tail_factor": 1.0, "spin": 1.0}
     first = (tmp_path / "f.md").read_text().split("\n\n")[1]
     assert first.startswith("**Warning:**") and "at its lower bound" in first
 
@@ -281,21 +282,27 @@ def test_a_scatter_law_out_of_range_is_a_one_line_error(drops, tmp_path):
     result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json")
     assert result.exit_code == 2 and "scatter.power.value is not in [0, 4]" in result.output
     assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "f.json").exists()
+    fit = fit_json(tmp_path / "tail.json", scatter={"corner": {"value": 0.1}, "flat": {"value": 0.1}, "tail_factor": {"value": 0.5}})
+    result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--json", tmp_path / "f.json")
+    assert result.exit_code == 2 and "scatter.tail_factor.value is not in [1, 10]" in result.output
+    assert len(result.output.strip().splitlines()) == 1 and not (tmp_path / "f.json").exists()
 
 
 def test_a_fitted_scale_multiplies_the_scatter_law_and_is_reported(drops, tmp_path):
     """Issue 31: the fit JSON's scatter_scale (fit_scatter_scale's factor) multiplies every
-    spread and floor, capped at 1, not the law's power, and the report says so."""
+    spread and floor, capped at 1, not the law's power or shape, and the report says so."""
     data, _ = drops
     scale = {"value": 1.5, "ci95": [1.2, 1.9], "tracks": 40, "bounces": [0, 1], "at_grid_end": False}
-    scatter = {"corner": {"value": 0.05, "floor": 0.1}, "flat": {"value": 0.8, "floor": 0.0}, "power": {"value": 2.0}}
+    scatter = {"corner": {"value": 0.05, "floor": 0.1}, "flat": {"value": 0.8, "floor": 0.0}, "power": {"value": 2.0},
+               "tail_share": {"value": 0.2}, "tail_factor": {"value": 2.5}, "spin": {"value": 1.4}}
     fit = fit_json(tmp_path / "scaled.json", scatter=scatter, scatter_scale=scale)
     out = tmp_path / "f.json"
     result = invoke("forecast", data, "--config", SQUARE, "--fit", fit, "--members", 1000, "--map-size", 0, "--workers", 2, "--json", out,
                     "--md", tmp_path / "f.md", "--quiet")
     assert result.exit_code == 0, result.output
     report = json.loads(out.read_text())
-    assert report["fit"]["scatter"] == pytest.approx({"corner": 0.075, "corner_floor": 0.15, "flat": 1.0, "flat_floor": 0.0, "power": 2.0})
+    assert report["fit"]["scatter"] == pytest.approx({"corner": 0.075, "corner_floor": 0.15, "flat": 1.0, "flat_floor": 0.0, "power": 2.0,
+                                                      "tail_share": 0.2, "tail_factor": 2.5, "spin": 1.4})
     assert report["fit"]["scatter_scale"]["value"] == 1.5
     assert "times 1.500 [1.200, 1.900]" in (tmp_path / "f.md").read_text()
     fit = fit_json(tmp_path / "bare.json", scatter=scatter, scatter_scale={"value": 0.5})  # a scale written by hand: its value only

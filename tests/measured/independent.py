@@ -63,7 +63,9 @@ What is simulated
   (``scatter_corner``, ``scatter_flat``, ``scatter_floor``, ``scatter_power`` p): after each
   impact a Gaussian velocity jump of sd min(sqrt((sigma v (u / v)^p)^2 + (floor v)^2), u),
   v = sqrt(g R), per component of
-  (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed,
+  (vx, vy, sqrt(I/M) omega), u the touching corner's approach speed (a share
+  ``scatter_tail_share`` of impacts ``scatter_tail_factor`` times wider, capped at u; the spin
+  component ``scatter_spin`` times the others),
   redrawn while it gains energy or leaves the corner approaching (numpy's generator, one
   stream per drop from ``scatter_seed`` and the release state). Measurement effects: a wrong clock, a wrong length scale and an angle
   offset, then Gaussian noise, dropped frames and one-frame glitches.
@@ -156,6 +158,11 @@ class Truth:
     scatter_floor: float = 0.0  # in sqrt(g R): sd = min(sqrt((scatter u)^2 + (floor sqrt(g R))^2), u), both kinds
     # the spread term's power of the approach speed: scatter sqrt(g R) (u / sqrt(g R))^power (1: scatter u)
     scatter_power: float = 1.0
+    # the jump's shape: a share of impacts jumps tail_factor times wider (heavy tails), and the
+    # spin component's sd is scatter_spin times the others'
+    scatter_tail_share: float = 0.0
+    scatter_tail_factor: float = 1.0
+    scatter_spin: float = 1.0
     scatter_seed: int = 0
 
 
@@ -1075,7 +1082,8 @@ def _scatter(truth, die, before, after, k, two, rng):
         return after
     unit = math.sqrt(truth.g * truth.circumradius)
     spread = sigma * u if truth.scatter_power == 1.0 else sigma * unit * (u / unit) ** truth.scatter_power
-    size = min(math.hypot(spread, floor), u)
+    wide = truth.scatter_tail_factor if truth.scatter_tail_share > 0.0 and rng.random() < truth.scatter_tail_share else 1.0
+    size = min(math.hypot(spread, floor) * wide, u)
     root = math.sqrt(die.inertia)
     limit = _kinetic(die, before[3:])
     for _ in range(SCATTER_TRIES):
@@ -1083,7 +1091,7 @@ def _scatter(truth, die, before, after, k, two, rng):
         new = after.copy()
         new[3] += xi[0]
         new[4] += xi[1]
-        new[5] += xi[2] / root
+        new[5] += xi[2] * truth.scatter_spin / root
         if die.normal_speeds(new)[k] >= 0.0 and _kinetic(die, new[3:]) <= limit:
             return new
     return after

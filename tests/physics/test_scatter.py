@@ -11,7 +11,7 @@ from dice_sweep.engine import ENGINE_PLAIN
 from dice_sweep.mapper import Mapper, roll_states
 from dice_sweep.measured.impacts import landing_tilt as measured_tilt
 from dice_sweep.physics.params import (FP_G, FP_INERTIA, FP_R, FP_SCATTER_CORNER, FP_SCATTER_CORNER_FLOOR, FP_SCATTER_FLAT, FP_SCATTER_FLAT_FLOOR,
-                                       FP_SCATTER_POWER, FP_STREAM_DRAW, FP_STREAM_PIXEL, FP_STREAM_SEED, pack_params)
+                                       FP_SCATTER_POWER, FP_SCATTER_SPIN, FP_SCATTER_TAIL_FACTOR, FP_SCATTER_TAIL_SHARE, FP_STREAM_DRAW, FP_STREAM_PIXEL, FP_STREAM_SEED, pack_params)
 from dice_sweep.physics.scatter import TRIES, VARIATES, landing_tilt, normal, scatter_impact, stream_key, uniform
 from tests.physics.conftest import make_params
 
@@ -42,11 +42,14 @@ def test_landing_tilt_on_the_table_is_calibrates():
         assert landing_tilt(phi, n, 0.0, 1.0, lowest) == pytest.approx(measured_tilt(n, phi), abs=1e-12)
 
 
-def _jumps(sigma, count, vy=-2.0, w=3.0, floor=0.0, power=1.0):
-    """Velocity jumps of ``count`` impacts of corner 0 (tilted 30 deg: a corner landing)."""
+def _jumps(sigma, count, vy=-2.0, w=3.0, floor=0.0, power=1.0, tail=(0.0, 1.0), spin=1.0):
+    """Velocity jumps of ``count`` impacts of corner 0 (tilted 30 deg: a corner landing);
+    ``tail``: (tail_share, tail_factor)."""
     fpar, ipar = make_params(sides=4, radius=0.02)
     fpar[FP_SCATTER_CORNER] = sigma
     fpar[FP_SCATTER_POWER] = power
+    fpar[FP_SCATTER_TAIL_SHARE], fpar[FP_SCATTER_TAIL_FACTOR] = tail
+    fpar[FP_SCATTER_SPIN] = spin
     fpar[FP_SCATTER_CORNER_FLOOR] = floor
     fpar[FP_SCATTER_FLAT] = 9.0  # must not be used
     fpar[FP_SCATTER_FLAT_FLOOR] = 9.0
@@ -110,6 +113,44 @@ def test_power_one_is_todays_law_bit_for_bit():
             assert after[3] + dvx == after[3] + size * normal(key, counter)
     off, *_ = _jumps(sigma, 200, floor=floor, power=1.0 + 1e-12)
     assert not np.array_equal(jumps, off) and np.allclose(jumps, off, atol=1e-9)
+
+
+def test_a_share_of_impacts_jumps_wider():
+    """tail_share 0.2, tail_factor 3: a fifth of the impacts jump with three times the sd
+    (the same factor on all three components of an impact), the rest with the law's."""
+    jumps, approach, inertia, *_ = _jumps(0.02, 4000, tail=(0.2, 3.0))
+    d = jumps[jumps[:, 0] >= 0, 1:]
+    d[:, 2] *= math.sqrt(inertia)
+    size = 0.02 * approach
+    # |jump|^2 beyond 12 sd^2: chi-square(3) > 12 for 0.74 % of narrow impacts, > 12 / 9 for 72 % of wide ones
+    far = np.sum(d**2, axis=1) > 12.0 * size**2
+    assert 0.150 - 0.025 < far.mean() < 0.150 + 0.025  # 0.8 * 0.0074 + 0.2 * 0.721 = 0.150; a Gaussian of the same variance: 0.20
+    assert np.std(d, axis=0) == pytest.approx(size * math.sqrt(0.8 + 0.2 * 9.0) * np.ones(3), rel=0.08)
+    assert stats.kurtosis(d[:, 0]) > 2.0  # a Gaussian's is 0; this mixture's 3 (1 - w + w k^4) / (1 - w + w k^2)^2 - 3 = 4.5
+
+
+def test_the_spin_component_scales_alone():
+    jumps, approach, inertia, *_ = _jumps(0.05, 4000, spin=1.8)
+    d = jumps[jumps[:, 0] >= 0, 1:]
+    d[:, 2] *= math.sqrt(inertia)
+    assert np.std(d, axis=0) == pytest.approx(0.05 * approach * np.array([1.0, 1.0, 1.8]), rel=0.06)
+
+
+def test_the_shapes_null_values_are_todays_law_bit_for_bit():
+    """tail_share 0 (any tail_factor) and spin 1: every jump and every roll of a probability
+    sweep's streams as without the keys; a tail_share a hair above 0 moves some."""
+    plain, *_ = _jumps(0.05, 300, floor=0.02)
+    same, *_ = _jumps(0.05, 300, floor=0.02, tail=(0.0, 7.0), spin=1.0)
+    assert np.array_equal(plain, same)
+    starts = _starts(200)
+    streams = np.column_stack([np.arange(200), np.full(200, 3)])
+    law = "[scatter]\ncorner = 0.1\nflat = 0.2\ncorner_floor = 0.05\nseed = 4\n"
+    before = Mapper.from_config(parse_config(law)).roll(starts, streams=streams)
+    after = Mapper.from_config(parse_config(law + "tail_share = 0.0\ntail_factor = 5.0\nspin = 1.0\n")).roll(starts, streams=streams)
+    for a, b in zip(before, after):
+        assert np.array_equal(a, b, equal_nan=True)
+    tailed = Mapper.from_config(parse_config(law + "tail_share = 0.3\ntail_factor = 5.0\n")).roll(starts, streams=streams)
+    assert (tailed.outcome != before.outcome).mean() > 0.05
 
 
 def test_config_floors_are_in_each_dies_own_speed():
