@@ -291,27 +291,28 @@ def hop_gap(f, fp, rx, ry, omega, g, s):
     return gap, rate
 
 
-@numba.njit(inline="always")
-def hop_step(fpar, k, cos_phi, sin_phi, h, hv, omega, g, tol, s, s_max):
-    """A step (s) putting corner k's gap above the table within HOP_AIM +- HOP_BAND tol, by
-    Newton steps from ``s`` (the corner's safe step) or, for a corner leaving the table, from
-    the time a parabola of its curvature now would take to come back; 0 if none is found.
+# A call, not inlined (scalars only, so no reference counts): at most once a search step, and
+# inlined into search_free and _scan it lengthened the cold compile.
+@numba.njit(cache=True)
+def hop_step(f, fp, rx, ry, omega, g, tol, s, s_max):
+    """A step (s) putting a corner's gap above the table (f, its rate fp, its offset (rx, ry)
+    from the centre of mass) within HOP_AIM +- HOP_BAND tol, by Newton steps from ``s`` (the
+    corner's safe step) or, for a corner leaving the table, from the time a parabola of its
+    curvature now would take to come back; 0 if none is found within s_max (<= HOP_TURN /
+    |omega|).
 
     Only for a die whose corners' gaps are all concave in time (g > rho omega^2: the gap's
     curvature is -g - omega^2 (n . r) <= -g + rho omega^2). Then the gap stays above the
     smaller of its values at 0 and at the step, so a step ending with the gap above 0 passed
     no contact of this corner (a corner that starts touching, leaving, may dip only where it
     started). Newton steps on a concave gap falling past its root come back from beyond it."""
-    rx, ry = corner_offset(fpar, k, cos_phi, sin_phi)
-    f = h + ry
-    fp = hv + omega * rx
     curve = g + omega * omega * ry  # the gap's curvature now, less sign
     if f <= tol and fp > 0.0 and curve > 0.0:
         # leaving the table: back at about 2 fp / curve, closer than the bound's safe step
         # (fig09: 2.75 -> 2.0 gap evaluations a hop); Newton steps go on from either side
         s = 2.0 * fp / curve
     for _ in range(HOP_NEWTON):
-        if not (s > 0.0 and s <= s_max):  # the series hold up to s_max = HOP_TURN / |omega|
+        if not (s > 0.0 and s <= s_max):  # the series hold up to s_max
             return 0.0
         gap, rate = hop_gap(f, fp, rx, ry, omega, g, s)
         if abs(gap - HOP_AIM * tol) <= HOP_BAND * tol:
@@ -338,7 +339,8 @@ def _hop_limit(fpar, limit, cos_phi, sin_phi, h, hv, omega, g, tol, step, second
     lengthened to that corner's :func:`hop_step` if it is longer, up to ``second``."""
     if limit < 0 or not step < second:
         return step
-    return min(second, max(step, hop_step(fpar, limit, cos_phi, sin_phi, h, hv, omega, g, tol, step, hop_time)))
+    rx, ry = corner_offset(fpar, limit, cos_phi, sin_phi)
+    return min(second, max(step, hop_step(h + ry, hv + omega * rx, rx, ry, omega, g, tol, step, hop_time)))
 
 
 @numba.njit(cache=True)

@@ -149,7 +149,10 @@ def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, c
         hop = turn >= 0.0 and surf == SURF_TABLE and omega * omega * fpar[FP_CORNERS] < accel * (1.0 - HOP_CONCAVE)
         if hop and best_corner < 0 and lowest < corner_steps.min():
             hop_time = HOP_TURN / abs(omega) if omega != 0.0 else math.inf
-            lowest = min(corner_steps.min(), max(lowest, hop_step(fpar, limit, cphi, sphi, h, hv, omega, accel, tol, lowest, hop_time)))
+            base = FP_CORNERS + CORNER_STRIDE * limit
+            rx = fpar[base] * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
+            ry = fpar[base] * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
+            lowest = min(corner_steps.min(), max(lowest, hop_step(h + ry, hv + omega * rx, rx, ry, omega, accel, tol, lowest, hop_time)))
         step = min(step, lowest)
     if best_corner >= 0:
         return -1.0
@@ -467,7 +470,7 @@ def test_hop_step_lands_a_leaving_corner_within_its_band_before_it_comes_back(si
         fp = hv + omega * rx
         start = 2.0 * fp / (G + rho * omega * omega)  # the wide bound's return to the table: short of it
         s_max = HOP_TURN / abs(omega)
-        step = hop_step(fpar, 0, c, sn, h, hv, omega, G, tol, start, s_max)
+        step = hop_step(h + ry, fp, rx, ry, omega, G, tol, start, s_max)
         back = 2.0 * fp / (G + omega * omega * ry)  # about when it comes back
         within_turn += back < 0.9 * s_max
         if step == 0.0:
@@ -492,13 +495,13 @@ def test_hop_step_refuses_what_it_cannot_show():
     omega = 10.0
     s_max = HOP_TURN / omega
     long_hop = 0.5 - omega * rx  # leaves at 0.5 m/s: back after about 0.1 s, 1 rad
-    assert hop_step(fpar, 0, c, sn, h, long_hop, omega, G, tol, 1e-3, s_max) == 0.0
+    assert hop_step(h + ry, long_hop + omega * rx, rx, ry, omega, G, tol, 1e-3, s_max) == 0.0
     low_hop = math.sqrt(2.0 * G * 0.1 * tol) - omega * rx  # rises to about 0.1 tol
-    assert hop_step(fpar, 0, c, sn, h, low_hop, omega, G, tol, 1e-9, s_max) == 0.0
+    assert hop_step(h + ry, low_hop + omega * rx, rx, ry, omega, G, tol, 1e-9, s_max) == 0.0
     rising = 0.01 - omega * rx  # 1 um up, rising at 0.01 m/s for another ms
-    assert hop_step(fpar, 0, c, sn, h + 1e-6, rising, omega, G, tol, 1e-5, s_max) == 0.0
+    assert hop_step(h + ry + 1e-6, rising + omega * rx, rx, ry, omega, G, tol, 1e-5, s_max) == 0.0
     # the same corner from a step near its return (about 2.46 ms) is found
-    assert hop_step(fpar, 0, c, sn, h + 1e-6, rising, omega, G, tol, 2.4e-3, s_max) > 2.4e-3
+    assert hop_step(h + ry + 1e-6, rising + omega * rx, rx, ry, omega, G, tol, 2.4e-3, s_max) > 2.4e-3
 
 
 @pytest.mark.parametrize("sides", [12, 20])
