@@ -67,6 +67,15 @@ REST_MARGIN = 1e-9
 # instead of by rho omega^2 (see _corner_motion): fig09's flights took 3.15 steps instead of
 # 4.74 (0.02: 3.12, 0.1: 3.25, 0.2: 3.43), to the same contact tolerance.
 NEAR_TURN = 0.05
+# And the corner that limits a step is stepped, if it can be shown safe, to where its gap is
+# HOP_AIM tol (accepted within HOP_AIM +- HOP_BAND tol) by Newton steps on its exact gap in
+# flight (hop_step): a hop of the corner that just hit took 3 search steps, now 2 (issue 33).
+# HOP_TURN (rad) bounds the turn over which its series are used (error < 1e-20 rho).
+HOP_AIM = 0.5
+HOP_BAND = 0.25
+HOP_TURN = 0.05
+HOP_NEWTON = 4
+HOP_CONCAVE = 1e-6  # relative margin of rho omega^2 < g: every corner's gap concave in time
 
 
 @numba.njit(cache=True)
@@ -267,6 +276,73 @@ def _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step):
     return min(step, corner_step)
 
 
+@numba.njit(inline="always")
+def hop_gap(f, fp, rx, ry, omega, g, s):
+    """Gap (m) and its rate (m/s) of a corner ``s`` seconds into a drag-free flight, from its gap
+    f, rate fp and offset (rx, ry) from the centre of mass now (table; the die turns by omega s
+    with |omega s| <= HOP_TURN: the series of cos - 1 and sin - x stop at their 8th and 9th
+    powers, off by less than 3e-20 at 0.05 rad)."""
+    d = omega * s
+    u = d * d
+    cos_m1 = u * (-0.5 + u * (1.0 / 24.0 + u * (-1.0 / 720.0 + u * (1.0 / 40320.0))))
+    sin_m = d * u * (-1.0 / 6.0 + u * (1.0 / 120.0 + u * (-1.0 / 5040.0 + u * (1.0 / 362880.0))))
+    gap = f + fp * s - 0.5 * g * s * s + ry * cos_m1 + rx * sin_m
+    rate = fp - g * s - omega * ry * (d + sin_m) + omega * rx * cos_m1
+    return gap, rate
+
+
+# A call, not inlined (scalars only, so no reference counts): at most once a search step, and
+# inlined into search_free and _scan it lengthened the cold compile.
+@numba.njit(cache=True)
+def hop_step(f, fp, rx, ry, omega, g, tol, s, s_max):
+    """A step (s) putting a corner's gap above the table (f, its rate fp, its offset (rx, ry)
+    from the centre of mass) within HOP_AIM +- HOP_BAND tol, by Newton steps from ``s`` (the
+    corner's safe step) or, for a corner leaving the table, from the time a parabola of its
+    curvature now would take to come back; 0 if none is found within s_max (<= HOP_TURN /
+    |omega|).
+
+    Only for a die whose corners' gaps are all concave in time (g > rho omega^2: the gap's
+    curvature is -g - omega^2 (n . r) <= -g + rho omega^2). Then the gap stays above the
+    smaller of its values at 0 and at the step, so a step ending with the gap above 0 passed
+    no contact of this corner (a corner that starts touching, leaving, may dip only where it
+    started). Newton steps on a concave gap falling past its root come back from beyond it."""
+    curve = g + omega * omega * ry  # the gap's curvature now, less sign
+    if f <= tol and fp > 0.0 and curve > 0.0:
+        # leaving the table: back at about 2 fp / curve, closer than the bound's safe step
+        # (fig09: 2.75 -> 2.0 gap evaluations a hop); Newton steps go on from either side
+        s = 2.0 * fp / curve
+    for _ in range(HOP_NEWTON):
+        if not (s > 0.0 and s <= s_max):  # the series hold up to s_max
+            return 0.0
+        gap, rate = hop_gap(f, fp, rx, ry, omega, g, s)
+        if abs(gap - HOP_AIM * tol) <= HOP_BAND * tol:
+            return s
+        if not rate < 0.0:
+            return 0.0
+        s += (HOP_AIM * tol - gap) / rate
+    return 0.0
+
+
+@numba.njit(inline="always")
+def _near_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step, second, limit, k):
+    """After corner k (its step by :func:`_turn_step`): the shortest corner step so far, the
+    second shortest and the corner of the shortest (for :func:`_hop_limit`)."""
+    corner_step = _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, second)
+    if corner_step < step:
+        return corner_step, step, k
+    return step, corner_step, limit
+
+
+@numba.njit(inline="always")
+def _hop_limit(fpar, limit, cos_phi, sin_phi, h, hv, omega, g, tol, step, second, hop_time):
+    """``step``, set by corner ``limit`` alone (``second``: the next shortest corner step),
+    lengthened to that corner's :func:`hop_step` if it is longer, up to ``second``."""
+    if limit < 0 or not step < second:
+        return step
+    rx, ry = corner_offset(fpar, limit, cos_phi, sin_phi)
+    return min(second, max(step, hop_step(h + ry, hv + omega * rx, rx, ry, omega, g, tol, step, hop_time)))
+
+
 @numba.njit(cache=True)
 def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, turn, hit):
     """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now; with
@@ -277,6 +353,8 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
     arc = fpar[FP_CORNER_RADIUS]
     omega = s[5]
     turn_time = turn / abs(omega) if turn >= 0.0 and omega != 0.0 else math.inf
+    hop = turn >= 0.0 and omega * omega * fpar[FP_CORNERS] < accel_table * (1.0 - HOP_CONCAVE)
+    hop_time = HOP_TURN / abs(omega) if omega != 0.0 else math.inf
     cphi = math.cos(s[2])
     sphi = math.sin(s[2])
     step = math.inf
@@ -293,6 +371,8 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
             step = min(step, safe_step(h - rho_max, hv, accel))
             continue
         h -= arc  # rounded corners: the arc centres against the surface moved by r (exact at 0)
+        second = math.inf
+        limit = -1
         for k in range(n):
             f, fp, m2, m2_turn = _corner_motion(fpar, k, cphi, sphi, h, hv, nx, ny, omega, accel, max(turn, 0.0))
             if f <= tol and fp < -contact_speed:
@@ -302,9 +382,11 @@ def _scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_sp
                     best_corner = k
                     best_rate = fp
             elif turn >= 0.0:
-                step = _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step)
+                step, second, limit = _near_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step, second, limit, k)
             else:
                 step = min(step, _corner_step(f, fp, m2, tol, min_step))
+        if hop and surf == SURF_TABLE and best_corner < 0:
+            step = _hop_limit(fpar, limit, cphi, sphi, h, hv, omega, accel, tol, step, second, hop_time)
     if best_corner >= 0:
         return -1.0
     return step
@@ -360,6 +442,8 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     # the tighter curvature bound holds for steps up to this; a longer one takes the wider bound's
     turn_time = NEAR_TURN / abs(omega) if omega != 0.0 else math.inf
     per_rad = n / (2.0 * math.pi)
+    hop = few_near and omega * omega * fpar[FP_CORNERS] < g * (1.0 - HOP_CONCAVE)
+    hop_time = HOP_TURN / abs(omega) if omega != 0.0 else math.inf
     tau = 0.0
     result = STALLED
     hit_surf = -1
@@ -392,7 +476,11 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                 first = int(math.floor((-0.5 * math.pi - phi) * per_rad + 0.5)) % n - NEAR_CORNERS
                 first += n if first < 0 else 0
                 count = 2 * NEAR_CORNERS + 1
+            step_in = step
             while True:
+                step = step_in
+                second = math.inf  # the second shortest corner step, and the corner of the shortest
+                limit = -1
                 for j in range(count):
                     k = first + j
                     k -= n if k >= n else 0
@@ -404,21 +492,25 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                             best_corner = k
                             best_rate = fp
                     elif few_near:
-                        step = _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step)
+                        step, second, limit = _near_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step, second, limit, k)
                     else:
                         step = min(step, _corner_step(f, fp, m2, tol, min_step))
+                if hop and best_corner < 0:
+                    step = _hop_limit(fpar, limit, cphi, sphi, h, hv, omega, accel, tol, step, second, hop_time)
                 if count == n:
                     break
                 # The corners not visited are a run of the cycle without the lowest: no lower
                 # than the nearer of its two ends (a fair die's heights rise away from the
                 # bottom), no faster than hv + |omega| rho. Unless that bound shows that none
                 # can touch now nor shorten the step, every corner is visited, as without it:
-                # the step and the contact are the full loop's, bit for bit.
+                # the step and the contact are the full loop's, bit for bit. With a contact
+                # found the step is not used: none of the others touching is enough (fig09:
+                # the full loop ran at a fifth of the contacts).
                 f_rest = min(_table_gap(fpar, first - 1 + (n if first == 0 else 0), cphi, sphi, h),
                              _table_gap(fpar, first + count - (n if first + count >= n else 0), cphi, sphi, h))
                 f_rest -= REST_MARGIN * rho_max
                 rho = fpar[FP_CORNERS]
-                if f_rest > tol and safe_step(f_rest, hv - abs(omega) * rho * (1.0 + REST_MARGIN), accel + rho * omega * omega) > step * (1.0 + REST_MARGIN):
+                if f_rest > tol and (best_corner >= 0 or safe_step(f_rest, hv - abs(omega) * rho * (1.0 + REST_MARGIN), accel + rho * omega * omega) > step * (1.0 + REST_MARGIN)):
                     break
                 first = 0
                 count = n

@@ -224,7 +224,7 @@ def corner_impulse(s, inertia, beta_n, beta_t, mu, rx, ry, nx, ny, sliding=False
 # inlined (numba IR): as a call with four array arguments, its reference counts made it
 # 86 ns an impact against 70 inlined (a replay of fig09's impacts; issue 33)
 @numba.njit(cache=True, inline="always")
-def resolve_impact(s, fpar, ipar, surf, corner, counts):
+def resolve_impact(s, fpar, ipar, surf, corner, counts, cos_phi=math.nan, sin_phi=0.0):
     """Resolve an impact of ``corner`` on surface ``surf`` with the config's contact model.
 
     Model "paper": the paper's law is used when the centre approaches the surface and the law
@@ -236,10 +236,14 @@ def resolve_impact(s, fpar, ipar, surf, corner, counts):
     Coulomb cap, "exact" the integrated Coulomb impact of :mod:`exact_impact` (with ``[contact]
     restitution``; beta_tangential unused). beta_normal falls with the impact speed as
     beta_normal / (1 + k |u_n|) (k = 0: constant). Returns the corner's normal velocity
-    after the impact (m/s).
+    after the impact (m/s). ``cos_phi`` and ``sin_phi``: those of s[2] if known (the contact
+    search's; a 20-sided roll has 130 impacts), else NaN.
     """
     nx, ny, _ = surface_frame(surf, fpar[FP_WALL])
-    rx, ry = corner_vector(s, fpar, corner)
+    if math.isnan(cos_phi):
+        rx, ry = corner_vector(s, fpar, corner)
+    else:
+        rx, ry = corner_offset(fpar, corner, cos_phi, sin_phi)
     rx, ry = contact_lever(fpar, rx, ry, nx, ny)  # rounded corners: the contact point
     u_n = corner_normal_velocity(s, rx, ry, nx, ny)
     if u_n >= 0.0:

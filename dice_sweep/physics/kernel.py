@@ -218,11 +218,12 @@ def _set_pivot_state(s, fpar, px, chi, omega, corner):
 
 
 @numba.njit(inline="always")  # inlined: a call (four array arguments) per impact costs refcounts
-def _impact(s, fpar, ipar, surf, corner, counts):
-    """Resolve one impact and tally it; returns the corner's normal velocity after (m/s)."""
+def _impact(s, fpar, ipar, surf, corner, counts, cos_phi, sin_phi):
+    """Resolve one impact and tally it; returns the corner's normal velocity after (m/s).
+    ``cos_phi``, ``sin_phi``: of s[2], or NaN (see resolve_impact)."""
     if scatter_on(fpar):
         return _scattered_impact(s, fpar, ipar, surf, corner, counts)
-    u_n = resolve_impact(s, fpar, ipar, surf, corner, counts)
+    u_n = resolve_impact(s, fpar, ipar, surf, corner, counts, cos_phi, sin_phi)
     counts[C_IMPACTS] += 1
     if surf != SURF_TABLE:
         counts[C_WALL] += 1
@@ -279,11 +280,11 @@ def _lone_contact(s, fpar, n, corner, cos_phi, sin_phi, tol, far_gap):
 
 
 @numba.njit(inline="always")  # as a call (four array arguments) it cost 8 % of fig08's rolls
-def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, lone, counts):
+def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, lone, counts, cos_phi, sin_phi):
     """Resolve the impact of ``corner`` on ``surf`` together with a second contact arriving
     within the contact window, if any (physics/multi_contact.py), or, with the flat_landing
     effect, within the contact time, sharing the impact. ``lone``: none can (see
-    :func:`_lone_contact`).
+    :func:`_lone_contact`). ``cos_phi``, ``sin_phi``: of s[2], or NaN.
 
     Returns the normal velocity after (m/s), surface and corner of the contact that decides
     what follows: of two arriving within the window, the table contact left slowest (a pivot
@@ -298,7 +299,7 @@ def _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, lone,
     share = 1.0 if arrival <= window else 1.0 - arrival / max(contact_time, window)  # < 1: found by contact_time
     vx0, vy0, w0 = s[3], s[4], s[5]  # the stochastic law scales its jump by the approach
     if corner_b < 0 or not resolve_two_contacts(s, fpar, ipar, surf, corner, surf_b, corner_b, share, counts):
-        return _impact(s, fpar, ipar, surf, corner, counts), surf, corner
+        return _impact(s, fpar, ipar, surf, corner, counts, cos_phi, sin_phi), surf, corner
     if scatter_on(fpar):
         _add_scatter(s, fpar, ipar, surf, corner, vx0, vy0, w0, counts[C_IMPACTS], True)
     counts[C_IMPACTS] += 1
@@ -685,7 +686,9 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
         walls_before = counts[C_WALL]  # a wall in this impact, alone or shared with the table
         contact = corner if surf == SURF_TABLE else np.int64(-1)  # a table corner within the gap tolerance
         lone = far_gap > 0.0 and contact >= 0 and s[2] == trig_phi and _lone_contact(s, fpar, n, corner, trig_cos, trig_sin, tol, far_gap)
-        u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, lone, counts)
+        known = s[2] == trig_phi  # the search left the cosine and sine of this angle
+        u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, lone, counts,
+                                          trig_cos if known else math.nan, trig_sin)
         flat = -1
         if surf == SURF_TABLE and not (corner == contact and abs(u_n) > stick_speed):
             # u_n is the corner's normal velocity after the impact, the one _corner_resting
@@ -755,7 +758,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
             # limit, the corner at rest on the table, and turn about it.
-            rx, ry = corner_vector(s, fpar, corner)
+            if s[2] == trig_phi:
+                rx, ry = corner_offset(fpar, corner, trig_cos, trig_sin)
+            else:
+                rx, ry = corner_vector(s, fpar, corner)
             lx, ly = contact_lever(fpar, rx, ry, 0.0, 1.0)  # rounded corners: the contact point
             if math.isinf(fpar[FP_MU]):
                 stick_corner(s, fpar[FP_INERTIA], lx, ly)
@@ -840,7 +846,7 @@ def _roll_fixed_step(fpar, ipar, s, rec, counts, start):
                         corner = k
         if corner < 0:
             continue
-        _impact(s, fpar, ipar, surf, corner, counts)
+        _impact(s, fpar, ipar, surf, corner, counts, math.nan, 0.0)
         impacts += 1
         energy = specific_energy(s, fpar)
         side = decided_side(s, fpar, n)

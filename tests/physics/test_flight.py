@@ -24,6 +24,10 @@ from scipy.optimize import minimize_scalar
 
 from dice_sweep.measured.fit import FIT_DRAG_MAX_STEP, FIT_DRAG_TOL
 from dice_sweep.physics.flight import (
+    HOP_AIM,
+    HOP_BAND,
+    HOP_CONCAVE,
+    HOP_TURN,
     MAX_SEARCH_STEPS,
     NEAR_MIN_SIDES,
     NEAR_TURN,
@@ -33,6 +37,7 @@ from dice_sweep.physics.flight import (
     SURF_TABLE,
     advance_flight,
     flight_state,
+    hop_step,
     next_contact,
     safe_step,
     surface_frame,
@@ -93,7 +98,8 @@ def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, c
     (rad; a fair die of NEAR_MIN_SIDES or more without walls) each corner also has the bound
     of its curvature over a turn of at most ``turn``, accel + omega^2 min(rho, n . r +
     |n . r_perp| turn + rho turn^2 / 2), safe for steps up to turn / |omega|; beyond, the wider
-    bound's step is taken if longer."""
+    bound's step is taken if longer; the corner whose step is the shortest, alone, may then
+    take its hop_step instead, if longer (no further than the next corner's step)."""
     half_width = fpar[FP_WALL]
     rho_max = fpar[FP_RHO_MAX]
     arc = fpar[FP_CORNER_RADIUS]
@@ -112,6 +118,7 @@ def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, c
             step = min(step, safe_step(h - rho_max, hv, accel))
             continue
         h -= arc
+        corner_steps = np.full(n, math.inf)
         for k in range(n):
             base = FP_CORNERS + CORNER_STRIDE * k
             rho = fpar[base]
@@ -131,9 +138,22 @@ def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, c
                         best_rate = fp
                 else:
                     wide = max(reference_touching_step(f, fp, m2, tol), min_step)
-                    step = min(step, reference_turn_step(max(reference_touching_step(f, fp, m2_turn, tol), min_step), wide, turn, omega))
+                    corner_steps[k] = reference_turn_step(max(reference_touching_step(f, fp, m2_turn, tol), min_step), wide, turn, omega)
             else:
-                step = min(step, reference_turn_step(safe_step(f, fp, m2_turn), safe_step(f, fp, m2), turn, omega))
+                corner_steps[k] = reference_turn_step(safe_step(f, fp, m2_turn), safe_step(f, fp, m2), turn, omega)
+        # a corner setting the step alone may take its hop_step, up to the next corner's step
+        # (turn >= 0, on the table, gaps concave in time: rho omega^2 < g)
+        limit = np.argmin(corner_steps)
+        lowest = corner_steps[limit]
+        corner_steps[limit] = math.inf
+        hop = turn >= 0.0 and surf == SURF_TABLE and omega * omega * fpar[FP_CORNERS] < accel * (1.0 - HOP_CONCAVE)
+        if hop and best_corner < 0 and lowest < corner_steps.min():
+            hop_time = HOP_TURN / abs(omega) if omega != 0.0 else math.inf
+            base = FP_CORNERS + CORNER_STRIDE * limit
+            rx = fpar[base] * (cphi * fpar[base + 1] - sphi * fpar[base + 2])
+            ry = fpar[base] * (sphi * fpar[base + 1] + cphi * fpar[base + 2])
+            lowest = min(corner_steps.min(), max(lowest, hop_step(h + ry, hv + omega * rx, rx, ry, omega, accel, tol, lowest, hop_time)))
+        step = min(step, lowest)
     if best_corner >= 0:
         return -1.0
     return step
@@ -403,6 +423,102 @@ def test_grazing_corner(sides, omega, depth):
         assert 0.0 < tau <= res.x  # corner 0 (or, on many-sided dice, a neighbour first)
     else:
         assert hit != (0, 0) or tau > res.x  # corner 0's near miss was stepped over
+
+
+# --- the hop of a many-sided die's corner (flight.hop_step) -----------------------------------
+
+
+def hop_start(fpar, n, rng):
+    """Corner 0 of a fair n-gon on the table (gap 0) near its lowest point, leaving it at 1e-5
+    to 0.05 m/s with the die turning at up to 0.9 sqrt(g / rho) (gaps concave in time), as
+    after most impacts of fig09's 20-gon: (phi, h, hv, omega, cos phi, sin phi, rx, ry)."""
+    base = FP_CORNERS
+    rho = fpar[base]
+    gamma = math.atan2(fpar[base + 2], fpar[base + 1])
+    phi = -0.5 * math.pi - gamma + rng.uniform(-math.pi / n, math.pi / n)
+    omega = rng.uniform(-0.9, 0.9) * math.sqrt(G / rho)
+    c, sn = math.cos(phi), math.sin(phi)
+    rx = rho * (c * fpar[base + 1] - sn * fpar[base + 2])
+    ry = rho * (sn * fpar[base + 1] + c * fpar[base + 2])
+    leave = 10.0 ** rng.uniform(-5.0, math.log10(0.05))
+    return phi, -ry, leave - omega * rx, omega, c, sn, rx, ry
+
+
+def exact_corner_gap(fpar, phi, h, hv, omega, t):
+    """Corner 0's gap (m) and rate (m/s) over the drag-free flight, in extended precision (numpy
+    long double sine and cosine of the turned angle, not flight's series)."""
+    t = np.asarray(t, np.longdouble)
+    rho = np.longdouble(fpar[FP_CORNERS])
+    angle = np.longdouble(phi) + np.arctan2(np.longdouble(fpar[FP_CORNERS + 2]), np.longdouble(fpar[FP_CORNERS + 1]))
+    w = np.longdouble(omega)
+    gap = np.longdouble(h) + np.longdouble(hv) * t - np.longdouble(G) / 2 * t * t + rho * np.sin(angle + w * t)
+    rate = np.longdouble(hv) - np.longdouble(G) * t + w * rho * np.cos(angle + w * t)
+    return gap, rate
+
+
+@pytest.mark.parametrize("sides", [12, 20])
+def test_hop_step_lands_a_leaving_corner_within_its_band_before_it_comes_back(sides, rng):
+    """From the quadratic bound's safe step, hop_step steps a corner that left the table to where
+    its exact gap is HOP_AIM +- HOP_BAND tol, still above the table and falling, with no contact
+    passed (the exact gap never below where it started) and within HOP_TURN of turn."""
+    fpar, ipar = make_params(sides=sides)
+    tol = tolerances(fpar)[0]
+    rho = fpar[FP_CORNERS]
+    found = within_turn = 0
+    for _ in range(300):
+        phi, h, hv, omega, c, sn, rx, ry = hop_start(fpar, sides, rng)
+        fp = hv + omega * rx
+        start = 2.0 * fp / (G + rho * omega * omega)  # the wide bound's return to the table: short of it
+        s_max = HOP_TURN / abs(omega)
+        step = hop_step(h + ry, fp, rx, ry, omega, G, tol, start, s_max)
+        back = 2.0 * fp / (G + omega * omega * ry)  # about when it comes back
+        within_turn += back < 0.9 * s_max
+        if step == 0.0:
+            assert back > 0.8 * s_max  # refused only where the series would not hold
+            continue
+        found += 1
+        assert 0.0 < step <= s_max
+        gap, rate = exact_corner_gap(fpar, phi, h, hv, omega, [step])
+        assert abs(float(gap[0]) / tol - HOP_AIM) <= HOP_BAND + 1e-3
+        assert rate[0] < 0.0
+        gaps, _ = exact_corner_gap(fpar, phi, h, hv, omega, np.linspace(0.0, step, 2001))
+        assert float(gaps.min()) >= float(min(gaps[0], 0.0)) - 1e-3 * tol
+    assert found >= within_turn > 200  # the hops of such dice are found, not left to the bound's steps
+
+
+def test_hop_step_refuses_what_it_cannot_show():
+    """Controls, nothing to find: a corner back only after turning far beyond HOP_TURN, a hop
+    too low to reach the band, a corner still rising at the step it is given."""
+    fpar, _ = make_params(sides=20)
+    tol = tolerances(fpar)[0]
+    phi, h, _, _, c, sn, rx, ry = hop_start(fpar, 20, np.random.default_rng(7))
+    omega = 10.0
+    s_max = HOP_TURN / omega
+    long_hop = 0.5 - omega * rx  # leaves at 0.5 m/s: back after about 0.1 s, 1 rad
+    assert hop_step(h + ry, long_hop + omega * rx, rx, ry, omega, G, tol, 1e-3, s_max) == 0.0
+    low_hop = math.sqrt(2.0 * G * 0.1 * tol) - omega * rx  # rises to about 0.1 tol
+    assert hop_step(h + ry, low_hop + omega * rx, rx, ry, omega, G, tol, 1e-9, s_max) == 0.0
+    rising = 0.01 - omega * rx  # 1 um up, rising at 0.01 m/s for another ms
+    assert hop_step(h + ry + 1e-6, rising + omega * rx, rx, ry, omega, G, tol, 1e-5, s_max) == 0.0
+    # the same corner from a step near its return (about 2.46 ms) is found
+    assert hop_step(h + ry + 1e-6, rising + omega * rx, rx, ry, omega, G, tol, 2.4e-3, s_max) > 2.4e-3
+
+
+@pytest.mark.parametrize("sides", [12, 20])
+def test_hops_of_many_sided_dice_find_the_first_contact(sides, rng):
+    """The whole search from such hops (the corner that just hit, leaving) against the exact gap;
+    it comes back to the table within the hop's band (the search took hop_step's step)."""
+    fpar, ipar = make_params(sides=sides)
+    tol = tolerances(fpar)[0]
+    in_band = 0
+    for _ in range(40):
+        phi, h, hv, omega, *_ = hop_start(fpar, sides, rng)
+        s0 = np.array([0.0, h, phi, 0.3 * rng.uniform(-1.0, 1.0), hv, omega])
+        tau, hit = check_search(fpar, ipar, s0, 0.3)
+        assert tau > 0.0
+        gap, _ = exact_gaps(fpar, sides, s0, [tau])
+        in_band += abs(gap[hit[0], hit[1], 0] / tol - HOP_AIM) <= HOP_BAND + 1e-3
+    assert in_band >= 36
 
 
 @pytest.mark.parametrize("sides", [3, 5, 12])
