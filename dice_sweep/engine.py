@@ -30,7 +30,7 @@ ENGINE_VARIABLE = "DICE_SWEEP_ENGINE"
 
 # What a cold compile of the sweep kernel costs on the project's 2-core machine (scripts/bench.py,
 # "cold" rows): work the plain engine would finish sooner than this runs plain.
-COMPILE_SECONDS = 43.0  # median of 3 compile-forced rolls at load 1.1-1.5 (docs/cold_start.md); 36 s before issue 33's closed-form slide, hinge and inlined impact law, 31 s before issue 33's ladder phase and pivot events, 23 s before issues 31 and 33
+COMPILE_SECONDS = 46.0  # median of 3 compile-forced rolls at load 1.1-2.1 (docs/cold_start.md); 43 s before issue 31's mixture law, 33's hop step, pivot_ode_flat and wall-chatter rule, 36 s before issue 33's closed-form slide, hinge and inlined impact law, 31 s before issue 33's ladder phase and pivot events, 23 s before issues 31 and 33
 PROBE_SECONDS = 0.3  # at most this long timing plain rolls to estimate the plain engine's speed
 PROBE_ROLLS = 32  # starts spread over the work, timed one by one
 

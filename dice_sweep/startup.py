@@ -127,7 +127,7 @@ def install_locator():
         pass
 
 
-# A cold compile on the project's 2-core machine: about 43 s for a first roll or sweep that compiles
+# A cold compile on the project's 2-core machine: about 46 s for a first roll or sweep that compiles
 # when it is quiet (docs/cold_start.md, "compile forced"); slower or loaded machines more.
 COLD_COMPILE_SECONDS = (30, 50)
 
