@@ -40,17 +40,38 @@ def context(args):
     return cfg, source, select_set, table, sigma
 
 
+def parse_law(text):
+    """--law's [scatter] keys, in the registry's order: corner, corner_floor, flat, flat_floor, power,
+    tail_share, tail_factor, spin (the ones left out: their null values)."""
+    from dice_sweep.effects import scatter_law_keys
+
+    return dict(zip(scatter_law_keys(), (float(v) for v in text.split(","))))
+
+
+def gaussian_law(law):
+    """The [scatter] keys of an estimate_spreads dict (the isotropic Gaussian law)."""
+    from dice_sweep.effects import scatter_spread_keys
+    from dice_sweep.measured.scatter import KINDS
+
+    return {**{name: (law[kind][key] or 0.0) for kind in KINDS for key, name in zip(("value", "floor"), scatter_spread_keys(kind))},
+            "power": law.get("power", {}).get("value", 1.0)}
+
+
 def law_variance(kind, u, law, speed):
-    """The law's per-component variance ((m/s)^2) at approach u (m/s), capped as the kernel caps it."""
+    """The law's per-component variance ((m/s)^2) at approach u (m/s) of (vx, vy, sqrt(I/M) omega),
+    shape included: a share tail_share of jumps tail_factor times wider, each capped at u as the
+    kernel caps it, and the spin component spin^2 times the others."""
     from dice_sweep.measured.scatter import jump_sd
 
-    keys = {kind: law[kind]["value"] or 0.0, f"{kind}_floor": law[kind]["floor"] or 0.0, "power": law.get("power", {}).get("value", 1.0)}
-    return (jump_sd(keys, kind, u / speed) * speed) ** 2
+    sd = jump_sd(law, kind, u / speed) * speed
+    w, k, s = law.get("tail_share", 0.0), law.get("tail_factor", 1.0), law.get("spin", 1.0)
+    both = (1.0 - w) * sd**2 + w * min(k * sd, u) ** 2
+    return both * np.array([1.0, 1.0, s * s])
 
 
 def residuals(args):
     from dice_sweep.measured.impacts import find_impacts
-    from dice_sweep.measured.scatter import KINDS, ImpactResidual, estimate_spreads, impact_residuals
+    from dice_sweep.measured.scatter import KINDS, ImpactResidual, estimate_shape, estimate_spreads, impact_residuals, shape_law
 
     cfg, source, select_set, table, sigma = context(args)
     speed = math.sqrt(source.params.get("g", cfg.world.g) * cfg.die.circumradius)
@@ -68,14 +89,16 @@ def residuals(args):
                                  table=table, g=source.params.get("g", cfg.world.g)))
             for k in range(n):
                 found[min(k, 4)] = found.get(min(k, 4), 0) + 1
-    law = estimate_spreads(rows, speed=speed, seed=source.seed, power=args.power)
+    spreads = estimate_spreads(rows, speed=speed, seed=source.seed, power=args.power)
+    # the law the forecast uses: the mixture's, unless --power holds the Gaussian law's power
+    shape = None if args.power is not None else estimate_shape(rows, speed=speed, seed=source.seed)
+    law = shape_law(shape) if shape else gaussian_law(spreads)
     OUT.mkdir(parents=True, exist_ok=True)
-    cache.write_text(json.dumps({"rows": [dataclasses.asdict(r) for r in rows], "law": law, "found": found}, default=float))
-    if args.law:  # another law to test against the same residuals: corner, corner_floor, flat, flat_floor[, power]
-        c, cf, f, ff, *p = (float(v) for v in args.law.split(","))
-        law = {"corner": {"value": c, "floor": cf}, "flat": {"value": f, "floor": ff}, "power": {"value": p[0] if p else 1.0}}
-    print(json.dumps({"law": {k: {key: law[k].get(key) for key in ("value", "ci95", "floor", "floor_ci95", "impacts") if key in law[k]} for k in law}}))
-    ratio = np.array([((r.residual2 - r.noise2) / 3.0) / law_variance(r.kind, r.approach, law, speed) for r in rows])
+    cache.write_text(json.dumps({"rows": [dataclasses.asdict(r) for r in rows], "law": spreads, "scatter": law, "found": found}, default=float))
+    if args.law:  # another law to test against the same residuals
+        law = parse_law(args.law)
+    print(json.dumps({"law": law}))
+    ratio = np.array([((r.residual2 - r.noise2) / 3.0) / law_variance(r.kind, r.approach, law, speed).mean() for r in rows])
     index = np.array([min(r.impact, 4) for r in rows])
     u = np.array([r.approach for r in rows]) / speed
     kind = np.array([r.kind for r in rows])
@@ -85,7 +108,7 @@ def residuals(args):
         if not got.size:
             return {"impacts": 0}
         boot = np.random.default_rng(0).choice(got, size=(2000, got.size)).mean(axis=1)
-        # a Gaussian jump's |r|^2 is the law's variance times chi-square(3) / 3: mean / median 1.27
+        # a Gaussian jump's |r|^2 / 3 is the law's variance times chi-square(3) / 3: mean / median 1.27
         return {"impacts": int(got.size), "mean_ratio": round(float(got.mean()), 3),
                 "ci95": [round(float(v), 3) for v in np.quantile(boot, [0.025, 0.975])], "median_ratio": round(float(np.median(got)), 3),
                 "median_u_sqrtgR": round(float(np.median(u[mask])), 2)}
@@ -97,7 +120,7 @@ def residuals(args):
     for name in KINDS:
         for first in (True, False):
             print(json.dumps({"kind": name, "first_impact": first, **group((kind == name) & ((index == 0) == first))}))
-    # each component's share: the law is isotropic in (vx, vy, sqrt(I/M) omega), so 1 each if that is right
+    # each component against its own variance in the law (the spin's: spin^2 times): 1 each if the law is right
     parts = np.array([np.subtract(r.components2, r.noise_components2) if r.components2 else np.full(3, np.nan) for r in rows])
     variance = np.array([law_variance(r.kind, r.approach, law, speed) for r in rows])
     for name in KINDS:
@@ -105,7 +128,7 @@ def residuals(args):
             mask = (kind == name) & ((index == 0) == first)
             if mask.any():
                 print(json.dumps({"kind": name, "first_impact": first, "component_ratio_vx_vy_spin": [
-                    round(float(v), 2) for v in np.nanmean(parts[mask], axis=0) / variance[mask].mean()]}))
+                    round(float(v), 2) for v in np.nanmean(parts[mask], axis=0) / variance[mask].mean(axis=0)]}))
 
 
 def flights(args):
@@ -126,19 +149,14 @@ def flights(args):
 
 
 def calibration(args):
-    from dice_sweep.effects import scatter_spread_keys
     from dice_sweep.measured import forecast as fc
-    from dice_sweep.measured.scatter import KINDS
 
     cfg, source, select_set, table, sigma = context(args)
-    if source.scatter is None:
-        law = json.loads((OUT / f"selection_residuals_{Path(args.fit).stem}.json").read_text())["law"]
-        source = dataclasses.replace(source, scatter={**{name: (law[kind][key] or 0.0) for kind in KINDS
-                                                         for key, name in zip(("value", "floor"), scatter_spread_keys(kind))},
-                                                      "power": law.get("power", {}).get("value", 1.0)})
+    if source.scatter is None:  # the law the residuals run estimated
+        saved = json.loads((OUT / f"selection_residuals_{Path(args.fit).stem}.json").read_text())
+        source = dataclasses.replace(source, scatter=saved.get("scatter") or gaussian_law(saved["law"]))
     if args.law:
-        c, cf, f, ff, *p = (float(v) for v in args.law.split(","))
-        source = dataclasses.replace(source, scatter={"corner": c, "corner_floor": cf, "flat": f, "flat_floor": ff, "power": p[0] if p else 1.0})
+        source = dataclasses.replace(source, scatter=parse_law(args.law))
     source = dataclasses.replace(source, scatter=fc.scaled_scatter(source.scatter, args.scale))
     observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
     prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
@@ -176,8 +194,7 @@ def release_width(args):
 
     cfg, source, select_set, table, sigma = context(args)
     if args.law:
-        c, cf, f, ff, *p = (float(v) for v in args.law.split(","))
-        source = dataclasses.replace(source, scatter={"corner": c, "corner_floor": cf, "flat": f, "flat_floor": ff, "power": p[0] if p else 1.0})
+        source = dataclasses.replace(source, scatter=parse_law(args.law))
     observed = {t.traj: fc.observed_side(t, cfg, source.params) for t in select_set.tracks}
     prepared = fc.prepared_tracks(select_set.tracks, cfg, sigma, table, observed)
     found = fc.fit_scatter_scale(prepared, cfg, source, (0,), sigma=sigma, observed=observed, members=args.members, workers=2)
@@ -191,7 +208,7 @@ def main():
     parser.add_argument("--fit", default=str(ROOT / "out" / "measured" / "report.json"))
     parser.add_argument("--members", type=int, default=500)
     parser.add_argument("--scale", type=float, default=1.0)
-    parser.add_argument("--law", help="test this law instead of the fit's: corner,corner_floor,flat,flat_floor[,power]")
+    parser.add_argument("--law", help="test this law instead of the fit's: corner,corner_floor,flat,flat_floor[,power,tail_share,tail_factor,spin]")
     parser.add_argument("--power", type=float, help="residuals: estimate the law at this power (default: the power estimated too)")
     parser.add_argument("--flights", default="0,1,2,3", help="calibration: the forecast points")
     args = parser.parse_args()

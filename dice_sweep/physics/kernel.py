@@ -685,8 +685,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
         last_was_flight_impact = not came_from_pivot
         walls_before = counts[C_WALL]  # a wall in this impact, alone or shared with the table
         contact = corner if surf == SURF_TABLE else np.int64(-1)  # a table corner within the gap tolerance
-        lone = far_gap > 0.0 and contact >= 0 and s[2] == trig_phi and _lone_contact(s, fpar, n, corner, trig_cos, trig_sin, tol, far_gap)
         known = s[2] == trig_phi  # the search left the cosine and sine of this angle
+        lone = far_gap > 0.0 and contact >= 0 and known and _lone_contact(s, fpar, n, corner, trig_cos, trig_sin, tol, far_gap)
         u_n, surf, corner = _impact_event(s, fpar, ipar, n_surf, surf, corner, tol, contact_speed, lone, counts,
                                           trig_cos if known else math.nan, trig_sin)
         flat = -1
@@ -758,7 +758,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
         if pivoting:
             # The bounces that would follow shrink geometrically (a Zeno run): take their
             # limit, the corner at rest on the table, and turn about it.
-            if s[2] == trig_phi:
+            if s[2] == trig_phi:  # tested again, not `known`: a ladder above can turn the die
                 rx, ry = corner_offset(fpar, corner, trig_cos, trig_sin)
             else:
                 rx, ry = corner_vector(s, fpar, corner)
