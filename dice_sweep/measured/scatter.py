@@ -216,6 +216,14 @@ STEP_SHARES = (1.0, 0.5, 0.2)  # of a scoring step, tried in turn; the best that
 _TINY = 1e-30  # (m/s)^2: keeps a variance of exactly 0 (no scatter, no noise) out of a division
 
 
+# Two estimators on the same residuals, on purpose: this one (estimate_spreads) fits the
+# isotropic Gaussian law with signed variances, so that with no scatter the estimate is not
+# pushed up and its interval straddles 0 (the control of tests/measured/test_scatter.py), and
+# profiles the power finely; estimate_shape fits the mixture per component within the law's
+# bounds (variances >= 0, w <= 0.5), where a signed variance has no meaning. The mixture held
+# at its nulls would be this law with a bound at 0, biased up near 0.
+
+
 def _kind_arrays(chosen, speed, track_of):
     """Per impact of one kind: the approach in units of ``speed``, |r|^2 / 3, n / 3 ((m/s)^2),
     and its track's row."""
