@@ -260,7 +260,7 @@ def replay_outcome(post, hits, u_n, fpar, n, stick_speed):
     decide_bound = outcome.decision_bound(fpar)
     for i in range(post.shape[0]):
         if hits[i, 0] == flight.SURF_TABLE and not abs(u_n[i]) > stick_speed:
-            acc += kernel._flat_side(post[i], fpar, n, stick_speed, hits[i, 1])
+            acc += kernel._flat_side(post[i], fpar, n, stick_speed, hits[i, 1], math.nan, 0.0)
         energy = impact.specific_energy(post[i], fpar)
         acc += energy
         if energy < decide_bound:

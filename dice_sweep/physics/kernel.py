@@ -329,9 +329,9 @@ def _corner_resting(s, fpar, corner, c, sn, speed):
 
 
 @numba.njit(cache=True)
-def _flat_side(s, fpar, n, speed, near):
+def _flat_side(s, fpar, n, speed, near, cos_phi, sin_phi):
     """The side the die lies flat on (both its corners on the table, neither moving in or out
-    faster than ``speed``), or -1.
+    faster than ``speed``), or -1. ``cos_phi``, ``sin_phi``: those of s[2] if known, else NaN.
 
     ``near``: a corner touching the table (within the gap tolerance), or -1 (unknown). No three
     corners of a regular polygon (arc centres too, loaded or not) lie within a tolerance of one
@@ -340,8 +340,10 @@ def _flat_side(s, fpar, n, speed, near):
     corners, and only it and its two neighbours need counting: the same answer (n = 20 counted
     20 corners on every table impact, issue 33).
     """
-    c = math.cos(s[2])
-    sn = math.sin(s[2])
+    c, sn = cos_phi, sin_phi
+    if c != c:
+        c = math.cos(s[2])
+        sn = math.sin(s[2])
     # Both corners of the side must be resting; after a bounce only the corner that hit is,
     # if any. Counting the resting corners first skips side_below (a float modulo) on almost
     # every call, and changes no answer.
@@ -694,7 +696,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
             # u_n is the corner's normal velocity after the impact, the one _corner_resting
             # tests: a contact corner leaving faster is not resting, and no side lies flat
             # without it (_flat_side). Most impacts of a many-sided die end so.
-            flat = _flat_side(s, fpar, n, stick_speed, corner if corner == contact else np.int64(-1))
+            # the search's cosine and sine if the impact left the angle theirs (28 calls a 20-sided roll)
+            known = s[2] == trig_phi
+            flat = _flat_side(s, fpar, n, stick_speed, corner if corner == contact else np.int64(-1),
+                              trig_cos if known else math.nan, trig_sin)
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
         tip = _held_flat(s, fpar, n, stick_speed) if surf == SURF_TABLE and loaded else -1
