@@ -144,8 +144,9 @@ def replay_search(starts, fpar, ipar, t_left, tol, min_step, contact_speed, pre,
     found = 0
     for i in range(starts.shape[0]):
         s = starts[i]
-        tau, surf, corner, x, y, phi, vy, _, _, _ = flight.search_free(
-            fpar, n, n_surf, t_left[i], tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5], math.nan, 0.0, 0.0
+        tau, surf, corner, x, y, phi, vy, _, _, _, _, _, _ = flight.search_free(
+            fpar, n, n_surf, t_left[i], tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5], math.nan, 0.0, 0.0,
+            math.nan, 0.0, 0.0
         )
         pre[i, 0] = x
         pre[i, 1] = y

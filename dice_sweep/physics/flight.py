@@ -278,15 +278,40 @@ def _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step):
 
 
 @numba.njit(inline="always")
-def hop_gap(f, fp, rx, ry, omega, g, s):
-    """Gap (m) and its rate (m/s) of a corner ``s`` seconds into a drag-free flight, from its gap
-    f, rate fp and offset (rx, ry) from the centre of mass now (table; the die turns by omega s
-    with |omega s| <= HOP_TURN: the series of cos - 1 and sin - x stop at their 8th and 9th
-    powers, off by less than 3e-20 at 0.05 rad)."""
-    d = omega * s
+def turn_series(d):
+    """(cos d - 1, sin d - d) for |d| <= HOP_TURN (rad): the series stop at their 8th and 9th
+    powers, off by less than 3e-20 at 0.05 rad."""
     u = d * d
     cos_m1 = u * (-0.5 + u * (1.0 / 24.0 + u * (-1.0 / 720.0 + u * (1.0 / 40320.0))))
     sin_m = d * u * (-1.0 / 6.0 + u * (1.0 / 120.0 + u * (-1.0 / 5040.0 + u * (1.0 / 362880.0))))
+    return cos_m1, sin_m
+
+
+@numba.njit(inline="always")
+def turned_trig(phi, anchor_phi, anchor_cos, anchor_sin):
+    """(cos phi, sin phi, anchor_phi, anchor_cos, anchor_sin): within HOP_TURN of the anchor
+    (an angle whose cosine and sine came from libm; NaN: none) by the angle-addition identity
+    and :func:`turn_series`, else from libm, phi then being the new anchor. Always from an
+    anchor computed by libm, so errors do not pile up from step to step (issue 33: a
+    20-sided roll's flights turn about 1e-3 rad each; the series take half a libm call's time)."""
+    d = phi - anchor_phi
+    if abs(d) <= HOP_TURN:
+        cos_m1, sin_m = turn_series(d)
+        sin_d = d + sin_m
+        return (anchor_cos + (anchor_cos * cos_m1 - anchor_sin * sin_d),
+                anchor_sin + (anchor_sin * cos_m1 + anchor_cos * sin_d), anchor_phi, anchor_cos, anchor_sin)
+    c = math.cos(phi)
+    sn = math.sin(phi)
+    return c, sn, phi, c, sn
+
+
+@numba.njit(inline="always")
+def hop_gap(f, fp, rx, ry, omega, g, s):
+    """Gap (m) and its rate (m/s) of a corner ``s`` seconds into a drag-free flight, from its gap
+    f, rate fp and offset (rx, ry) from the centre of mass now (table; the die turns by omega s
+    with |omega s| <= HOP_TURN, :func:`turn_series`)."""
+    d = omega * s
+    cos_m1, sin_m = turn_series(d)
     gap = f + fp * s - 0.5 * g * s * s + ry * cos_m1 + rx * sin_m
     rate = fp - g * s - omega * ry * (d + sin_m) + omega * rx * cos_m1
     return gap, rate
@@ -413,7 +438,7 @@ def _table_gap(fpar, k, cos_phi, sin_phi, h):
 
 @numba.njit(cache=True)
 def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, phi0, vx0, vy0, omega,
-                known_phi, known_cos, known_sin):
+                known_phi, known_cos, known_sin, anchor_phi, anchor_cos, anchor_sin):
     """Drag-free contact search from the state (x0, y0, phi0, vx0, vy0, omega): the steps of
     :func:`_scan` from the closed-form flight; a fair die of NEAR_MIN_SIDES or more without
     walls also takes each corner's tighter curvature bound (:func:`_corner_motion`, ``turn``).
@@ -431,7 +456,9 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     ``known_cos`` and ``known_sin`` are the cosine and sine of the angle ``known_phi`` (NaN:
     none), taken instead of computing them again when phi is that angle: a flight that starts
     at an impact starts at the angle where the search that found it stopped (issue 33: a
-    20-sided roll has about 100 flights).
+    20-sided roll has about 100 flights). Other angles' cosine and sine come from
+    :func:`turned_trig` and the anchor ``anchor_phi`` (NaN: none), whose cosine and sine came
+    from libm.
 
     Returns
     -------
@@ -444,6 +471,8 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     trig_phi, cos_phi, sin_phi : float
         The cosine and sine of trig_phi, the last angle whose cosine and sine were computed
         (or known_phi and the known values).
+    anchor_phi, anchor_cos, anchor_sin : float
+        The anchor for the next search.
     """
     g = fpar[FP_G]
     half_width = fpar[FP_WALL]
@@ -477,8 +506,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
             h -= arc  # rounded corners: arc centres against the surface moved by r
             if not trig:
                 if phi != trig_phi:
-                    cphi = math.cos(phi)
-                    sphi = math.sin(phi)
+                    cphi, sphi, anchor_phi, anchor_cos, anchor_sin = turned_trig(phi, anchor_phi, anchor_cos, anchor_sin)
                     trig_phi = phi
                 trig = True
             first = 0
@@ -539,7 +567,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
         y = y0 + vy0 * tau - 0.5 * g * tau * tau
         phi = phi0 + omega * tau
         vy = vy0 - g * tau
-    return result, hit_surf, hit_corner, x, y, phi, vy, trig_phi, cphi, sphi
+    return result, hit_surf, hit_corner, x, y, phi, vy, trig_phi, cphi, sphi, anchor_phi, anchor_cos, anchor_sin
 
 
 @numba.njit(cache=True)
@@ -577,9 +605,9 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     c = fpar[FP_DRAG]
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
     if c == 0.0:
-        tau, surf, corner, out[0], out[1], out[2], out[4], _, _, _ = search_free(
+        tau, surf, corner, out[0], out[1], out[2], out[4], _, _, _, _, _, _ = search_free(
             fpar, n, n_surf, tau_max, tol, min_step, contact_speed, s0[0], s0[1], s0[2], s0[3], s0[4], s0[5],
-            math.nan, 0.0, 0.0
+            math.nan, 0.0, 0.0, math.nan, 0.0, 0.0
         )
         out[3] = s0[3]
         out[5] = s0[5]

@@ -621,6 +621,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
     trig_phi = math.nan
     trig_cos = 0.0
     trig_sin = 0.0
+    # the search's last libm cosine and sine (flight.turned_trig): most others come from them
+    anchor_phi = math.nan
+    anchor_cos = 0.0
+    anchor_sin = 0.0
     # a fair many-sided die with the table alone: at a flight's contact only the contact corner's
     # neighbours can be near the table (issue 33: second_contact looked at all 20 on every impact)
     far_gap = _far_gap(fpar, n, tol) if n >= NEAR_MIN_SIDES and not loaded and n_surf == 1 else -1.0
@@ -629,9 +633,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
         if not pivoting:
             if drag_free:
                 # next_contact's own drag-free search, called with the state as scalars
-                tau, surf, corner_hit, x, y, phi, vy, trig_phi, trig_cos, trig_sin = search_free(
+                (tau, surf, corner_hit, x, y, phi, vy, trig_phi, trig_cos, trig_sin,
+                 anchor_phi, anchor_cos, anchor_sin) = search_free(
                     fpar, n, n_surf, t_max - t, tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5],
-                    trig_phi, trig_cos, trig_sin
+                    trig_phi, trig_cos, trig_sin, anchor_phi, anchor_cos, anchor_sin
                 )
             else:
                 tau = next_contact(s, fpar, ipar, t_max - t, tol, min_step, contact_speed, hit, after)
