@@ -511,18 +511,22 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                 trig = True
             first = 0
             count = n
+            lowest_first = 0  # the lowest corner visited first (a contact is most often there)
             if few_near and surf == SURF_TABLE:
                 # corner k of a fair die is at phi + 2 pi k / n: the lowest is the nearest to -pi/2
                 first = int(math.floor((-0.5 * math.pi - phi) * per_rad + 0.5)) % n - NEAR_CORNERS
                 first += n if first < 0 else 0
                 count = 2 * NEAR_CORNERS + 1
+                lowest_first = NEAR_CORNERS
             step_in = step
             while True:
                 step = step_in
                 second = math.inf  # the second shortest corner step, and the corner of the shortest
                 limit = -1
                 for j in range(count):
-                    k = first + j
+                    # the order changes no result: the step and the second are the two shortest
+                    # corner steps (a tie leaves step == second: no hop), the contact by its rule
+                    k = first + j + (lowest_first if j < count - lowest_first else lowest_first - count)
                     k -= n if k >= n else 0
                     f, fp, m2, m2_turn = _corner_motion(fpar, k, cphi, sphi, h, hv, nx, ny, omega, accel, NEAR_TURN)
                     if f <= tol and fp < -contact_speed:
@@ -532,7 +536,9 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                             best_corner = k
                             best_rate = fp
                     elif few_near:
-                        step, second, limit = _near_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step, second, limit, k)
+                        if best_corner < 0:  # with a contact found the step is not used
+                            step, second, limit = _near_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step, second,
+                                                             limit, k)
                     else:
                         step = min(step, _corner_step(f, fp, m2, tol, min_step))
                 if hop and best_corner < 0:
@@ -554,6 +560,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                     break
                 first = 0
                 count = n
+                lowest_first = 0
         if best_corner >= 0:
             hit_corner = best_corner
             result = tau
