@@ -40,6 +40,7 @@ from dice_sweep.physics.impact import (
     stop_corner_normal,
 )
 from dice_sweep.physics.params import (
+    CORNER_STRIDE,
     FP_COM_X,
     FP_CORNERS,
     FP_COM_Y,
@@ -202,19 +203,26 @@ def _flat_pair(fpar, n, corner, flats):
 def _set_pivot_state(s, fpar, px, chi, omega, corner):
     """Full COM state of a die pivoting on ``corner`` at (px, 0), keeping phi unwrapped; with
     rounded corners px is the arc centre's x (the centre at height r) and the die rolls
-    (the contact point at rest)."""
+    (the contact point at rest). Returns the cosine and sine of the body angle s[2], from
+    chi's and the corner's direction (within a few ulp of libm's; issue 33: the impact that
+    ends a 20-sided die's pivot, its outcome check and what follows took them again)."""
     rho, angle = corner_geometry(fpar, corner)
     arc = fpar[FP_CORNER_RADIUS]
-    s[0] = px + rho * math.cos(chi)
-    s[1] = rho * math.sin(chi)
+    c = math.cos(chi)
+    sn = math.sin(chi)
+    s[0] = px + rho * c
+    s[1] = rho * sn
     phi = chi - angle - math.pi  # chi is the body angle of (COM - corner) turned by phi
     s[2] = phi + 2.0 * math.pi * round((s[2] - phi) / (2.0 * math.pi))
-    s[3] = -omega * rho * math.sin(chi)
-    s[4] = omega * rho * math.cos(chi)
+    s[3] = -omega * rho * sn
+    s[4] = omega * rho * c
     s[5] = omega
     if arc != 0.0:
         s[1] += arc
         s[3] -= omega * arc
+    base = FP_CORNERS + CORNER_STRIDE * corner
+    # cos and sin of chi - angle - pi, (cos angle, sin angle) the corner's direction
+    return -(c * fpar[base + 1] + sn * fpar[base + 2]), fpar[base + 2] * c - fpar[base + 1] * sn
 
 
 @numba.njit(inline="always")  # inlined: a call (four array arguments) per impact costs refcounts
@@ -671,7 +679,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
             if nrec > 0:
                 rec[nrec - 1, REC_CHI_END] = out[0]
             t += out[2]
-            _set_pivot_state(s, fpar, px + out[3], out[0], out[1], corner)
+            trig_cos, trig_sin = _set_pivot_state(s, fpar, px + out[3], out[0], out[1], corner)
+            trig_phi = s[2]
             s[3] += out[4]  # a sliding corner carries its slip velocity into what follows
             pivoting = False
             if kind == PIVOT_DECIDED:
