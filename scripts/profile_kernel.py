@@ -276,7 +276,7 @@ def replay_pivots(pivots, fpar, n, kinds, pre, hits):
     pivot puts its next corner down goes to ``pre``."""
     out = np.zeros(5)
     hit = np.zeros(2, np.int64)
-    flats = np.full((n, 2), math.nan)  # kernel._flat_table: NaN until a corner first pivots
+    flats = np.full((n, 3), math.nan)  # kernel._flat_table: NaN until a corner first pivots
     for i in range(pivots.shape[0]):
         corner = int(pivots[i, 0])
         chi_right, chi_left = kernel._flat_pair(fpar, n, corner, flats)

@@ -186,8 +186,9 @@ def _record(rec, nrec, t, kind, s, corner, px, chi, energy, event):
 
 @numba.njit(cache=True)
 def _flat_table(ipar):
-    """An empty :func:`_flat_pair` table for the die of ipar: float64[n, 2] of NaN."""
-    return np.full((ipar[IP_N], 2), math.nan)
+    """An empty :func:`_flat_pair` table for the die of ipar: float64[n, 3] of NaN (the third
+    column: the corner's body angle, for :func:`_set_pivot_state`)."""
+    return np.full((ipar[IP_N], 3), math.nan)
 
 
 @numba.njit(cache=True)
@@ -196,17 +197,21 @@ def _flat_pair(fpar, n, corner, flats):
     from ``flats``: 20-sided rolls spent 119 of the 359 ns of a pivot on it (issue 33)."""
     if math.isnan(flats[corner, 0]):
         flats[corner, 0], flats[corner, 1] = flat_angles(fpar, n, corner)
+        flats[corner, 2] = corner_geometry(fpar, corner)[1]  # an atan2 a pivot (issue 33)
     return flats[corner, 0], flats[corner, 1]
 
 
 @numba.njit(cache=True)
-def _set_pivot_state(s, fpar, px, chi, omega, corner):
+def _set_pivot_state(s, fpar, px, chi, omega, corner, angle):
     """Full COM state of a die pivoting on ``corner`` at (px, 0), keeping phi unwrapped; with
     rounded corners px is the arc centre's x (the centre at height r) and the die rolls
-    (the contact point at rest). Returns the cosine and sine of the body angle s[2], from
-    chi's and the corner's direction (within a few ulp of libm's; issue 33: the impact that
-    ends a 20-sided die's pivot, its outcome check and what follows took them again)."""
-    rho, angle = corner_geometry(fpar, corner)
+    (the contact point at rest). ``angle``: the corner's body angle (``corner_geometry``; the
+    roll loop keeps it in its :func:`_flat_pair` table). Returns the cosine and sine of the
+    body angle s[2], from chi's and the corner's direction (within a few ulp of libm's; issue
+    33: the impact that ends a 20-sided die's pivot, its outcome check and what follows took
+    them again)."""
+    base = FP_CORNERS + CORNER_STRIDE * corner
+    rho = fpar[base]
     arc = fpar[FP_CORNER_RADIUS]
     c = math.cos(chi)
     sn = math.sin(chi)
@@ -220,7 +225,6 @@ def _set_pivot_state(s, fpar, px, chi, omega, corner):
     if arc != 0.0:
         s[1] += arc
         s[3] -= omega * arc
-    base = FP_CORNERS + CORNER_STRIDE * corner
     # cos and sin of chi - angle - pi, (cos angle, sin angle) the corner's direction
     return -(c * fpar[base + 1] + sn * fpar[base + 2]), fpar[base + 2] * c - fpar[base + 1] * sn
 
@@ -679,7 +683,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
             if nrec > 0:
                 rec[nrec - 1, REC_CHI_END] = out[0]
             t += out[2]
-            trig_cos, trig_sin = _set_pivot_state(s, fpar, px + out[3], out[0], out[1], corner)
+            trig_cos, trig_sin = _set_pivot_state(s, fpar, px + out[3], out[0], out[1], corner, flats[corner, 2])
             trig_phi = s[2]
             s[3] += out[4]  # a sliding corner carries its slip velocity into what follows
             pivoting = False
@@ -980,7 +984,8 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             slip = 0.0 if math.isinf(fpar[FP_MU]) else start[3] - start[5] * ly
             pivot_ode(fpar, ipar[IP_N], corner, rec[seg, REC_PX], rec[seg, REC_CHI], start[5], slip, tau, False, pivot_out, pivot_hit)
             com[:] = start
-            _set_pivot_state(com, fpar, rec[seg, REC_PX] + pivot_out[3], pivot_out[0], pivot_out[1], corner)
+            _set_pivot_state(com, fpar, rec[seg, REC_PX] + pivot_out[3], pivot_out[0], pivot_out[1], corner,
+                             corner_geometry(fpar, corner)[1])
             com[3] += pivot_out[4]
         elif rec[seg, REC_KIND] == SEG_PIVOT:
             corner = int(rec[seg, REC_CORNER])
@@ -992,7 +997,7 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             w2 = pivot_omega_squared(e, math.sin(chi), rho, g, alpha)
             omega = math.copysign(math.sqrt(max(w2, 0.0)), start[5] if start[5] != 0.0 else -math.cos(chi0))
             com[:] = start
-            _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner)
+            _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner, corner_geometry(fpar, corner)[1])
         elif rec[seg, REC_KIND] == SEG_LADDER:
             ladder_at(fpar, ipar[IP_N], int(rec[seg, REC_CORNER]), int(rec[seg, REC_PX]), rec[seg, REC_CHI], start[2], start[5], tau, com)
         elif rec[seg, REC_KIND] == SEG_SLIDE:
