@@ -290,10 +290,11 @@ def turn_series(d):
 @numba.njit(inline="always")
 def turned_trig(phi, anchor_phi, anchor_cos, anchor_sin):
     """(cos phi, sin phi, anchor_phi, anchor_cos, anchor_sin): within HOP_TURN of the anchor
-    (an angle whose cosine and sine came from libm; NaN: none) by the angle-addition identity
-    and :func:`turn_series`, else from libm, phi then being the new anchor. Always from an
-    anchor computed by libm, so errors do not pile up from step to step (issue 33: a
-    20-sided roll's flights turn about 1e-3 rad each; the series take half a libm call's time)."""
+    (an angle whose cosine and sine came from libm, or from a pivot's end within a few ulp;
+    NaN: none) by the angle-addition identity and :func:`turn_series`, else from libm, phi then
+    being the new anchor. Never from a value so derived, so errors do not pile up from step to
+    step (issue 33: a 20-sided roll's flights turn about 1e-3 rad each; the series take half a
+    libm call's time)."""
     d = phi - anchor_phi
     if abs(d) <= HOP_TURN:
         cos_m1, sin_m = turn_series(d)
@@ -457,8 +458,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     none), taken instead of computing them again when phi is that angle: a flight that starts
     at an impact starts at the angle where the search that found it stopped (issue 33: a
     20-sided roll has about 100 flights). Other angles' cosine and sine come from
-    :func:`turned_trig` and the anchor ``anchor_phi`` (NaN: none), whose cosine and sine came
-    from libm.
+    :func:`turned_trig` and the anchor ``anchor_phi`` (NaN: none).
 
     Returns
     -------

@@ -633,7 +633,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
     trig_phi = math.nan
     trig_cos = 0.0
     trig_sin = 0.0
-    # the search's last libm cosine and sine (flight.turned_trig): most others come from them
+    # the search's last libm cosine and sine, or a pivot's end's (flight.turned_trig): most
+    # others come from them
     anchor_phi = math.nan
     anchor_cos = 0.0
     anchor_sin = 0.0
@@ -685,6 +686,8 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
             t += out[2]
             trig_cos, trig_sin = _set_pivot_state(s, fpar, px + out[3], out[0], out[1], corner, flats[corner, 2])
             trig_phi = s[2]
+            # and the anchor of the next search's series: a pivot turns a 20-sided die by 0.3 rad
+            anchor_phi, anchor_cos, anchor_sin = trig_phi, trig_cos, trig_sin
             s[3] += out[4]  # a sliding corner carries its slip velocity into what follows
             pivoting = False
             if kind == PIVOT_DECIDED:
