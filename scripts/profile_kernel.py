@@ -284,7 +284,7 @@ def replay_pivots(pivots, fpar, n, kinds, pre, hits):
                                          out, hit)
         for j in range(6):
             pre[i, j] = pivots[i, 3 + j]
-        kernel._set_pivot_state(pre[i], fpar, pivots[i, 1] + out[3], out[0], out[1], corner)
+        kernel._set_pivot_state(pre[i], fpar, pivots[i, 1] + out[3], out[0], out[1], corner, flats[corner, 2])
         hits[i, 0] = hit[0]
         hits[i, 1] = hit[1]
 
