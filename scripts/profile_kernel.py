@@ -144,8 +144,9 @@ def replay_search(starts, fpar, ipar, t_left, tol, min_step, contact_speed, pre,
     found = 0
     for i in range(starts.shape[0]):
         s = starts[i]
-        tau, surf, corner, x, y, phi, vy, _, _, _ = flight.search_free(
-            fpar, n, n_surf, t_left[i], tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5], math.nan, 0.0, 0.0
+        tau, surf, corner, x, y, phi, vy, _, _, _, _, _, _ = flight.search_free(
+            fpar, n, n_surf, t_left[i], tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5], math.nan, 0.0, 0.0,
+            math.nan, 0.0, 0.0
         )
         pre[i, 0] = x
         pre[i, 1] = y
@@ -260,7 +261,7 @@ def replay_outcome(post, hits, u_n, fpar, n, stick_speed):
     decide_bound = outcome.decision_bound(fpar)
     for i in range(post.shape[0]):
         if hits[i, 0] == flight.SURF_TABLE and not abs(u_n[i]) > stick_speed:
-            acc += kernel._flat_side(post[i], fpar, n, stick_speed, hits[i, 1])
+            acc += kernel._flat_side(post[i], fpar, n, stick_speed, hits[i, 1], math.nan, 0.0)
         energy = impact.specific_energy(post[i], fpar)
         acc += energy
         if energy < decide_bound:
@@ -275,7 +276,7 @@ def replay_pivots(pivots, fpar, n, kinds, pre, hits):
     pivot puts its next corner down goes to ``pre``."""
     out = np.zeros(5)
     hit = np.zeros(2, np.int64)
-    flats = np.full((n, 2), math.nan)  # kernel._flat_table: NaN until a corner first pivots
+    flats = np.full((n, 3), math.nan)  # kernel._flat_table: NaN until a corner first pivots
     for i in range(pivots.shape[0]):
         corner = int(pivots[i, 0])
         chi_right, chi_left = kernel._flat_pair(fpar, n, corner, flats)
@@ -283,7 +284,7 @@ def replay_pivots(pivots, fpar, n, kinds, pre, hits):
                                          out, hit)
         for j in range(6):
             pre[i, j] = pivots[i, 3 + j]
-        kernel._set_pivot_state(pre[i], fpar, pivots[i, 1] + out[3], out[0], out[1], corner)
+        kernel._set_pivot_state(pre[i], fpar, pivots[i, 1] + out[3], out[0], out[1], corner, flats[corner, 2])
         hits[i, 0] = hit[0]
         hits[i, 1] = hit[1]
 

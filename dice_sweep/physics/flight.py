@@ -75,6 +75,7 @@ HOP_AIM = 0.5
 HOP_BAND = 0.25
 HOP_TURN = 0.05
 HOP_NEWTON = 4
+HOP_SURE = 0.5  # a Newton step's end is taken unevaluated if its bound is within this share of the band
 HOP_CONCAVE = 1e-6  # relative margin of rho omega^2 < g: every corner's gap concave in time
 
 
@@ -277,15 +278,41 @@ def _turn_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step):
 
 
 @numba.njit(inline="always")
-def hop_gap(f, fp, rx, ry, omega, g, s):
-    """Gap (m) and its rate (m/s) of a corner ``s`` seconds into a drag-free flight, from its gap
-    f, rate fp and offset (rx, ry) from the centre of mass now (table; the die turns by omega s
-    with |omega s| <= HOP_TURN: the series of cos - 1 and sin - x stop at their 8th and 9th
-    powers, off by less than 3e-20 at 0.05 rad)."""
-    d = omega * s
+def turn_series(d):
+    """(cos d - 1, sin d - d) for |d| <= HOP_TURN (rad): the series stop at their 8th and 9th
+    powers, off by less than 3e-20 at 0.05 rad."""
     u = d * d
     cos_m1 = u * (-0.5 + u * (1.0 / 24.0 + u * (-1.0 / 720.0 + u * (1.0 / 40320.0))))
     sin_m = d * u * (-1.0 / 6.0 + u * (1.0 / 120.0 + u * (-1.0 / 5040.0 + u * (1.0 / 362880.0))))
+    return cos_m1, sin_m
+
+
+@numba.njit(inline="always")
+def turned_trig(phi, anchor_phi, anchor_cos, anchor_sin):
+    """(cos phi, sin phi, anchor_phi, anchor_cos, anchor_sin): within HOP_TURN of the anchor
+    (an angle whose cosine and sine came from libm, or from a pivot's end within a few ulp;
+    NaN: none) by the angle-addition identity and :func:`turn_series`, else from libm, phi then
+    being the new anchor. Never from a value so derived, so errors do not pile up from step to
+    step (issue 33: a 20-sided roll's flights turn about 1e-3 rad each; the series take half a
+    libm call's time)."""
+    d = phi - anchor_phi
+    if abs(d) <= HOP_TURN:
+        cos_m1, sin_m = turn_series(d)
+        sin_d = d + sin_m
+        return (anchor_cos + (anchor_cos * cos_m1 - anchor_sin * sin_d),
+                anchor_sin + (anchor_sin * cos_m1 + anchor_cos * sin_d), anchor_phi, anchor_cos, anchor_sin)
+    c = math.cos(phi)
+    sn = math.sin(phi)
+    return c, sn, phi, c, sn
+
+
+@numba.njit(inline="always")
+def hop_gap(f, fp, rx, ry, omega, g, s):
+    """Gap (m) and its rate (m/s) of a corner ``s`` seconds into a drag-free flight, from its gap
+    f, rate fp and offset (rx, ry) from the centre of mass now (table; the die turns by omega s
+    with |omega s| <= HOP_TURN, :func:`turn_series`)."""
+    d = omega * s
+    cos_m1, sin_m = turn_series(d)
     gap = f + fp * s - 0.5 * g * s * s + ry * cos_m1 + rx * sin_m
     rate = fp - g * s - omega * ry * (d + sin_m) + omega * rx * cos_m1
     return gap, rate
@@ -305,13 +332,18 @@ def hop_step(f, fp, rx, ry, omega, g, tol, s, s_max):
     curvature is -g - omega^2 (n . r) <= -g + rho omega^2). Then the gap stays above the
     smaller of its values at 0 and at the step, so a step ending with the gap above 0 passed
     no contact of this corner (a corner that starts touching, leaving, may dip only where it
-    started). Newton steps on a concave gap falling past its root come back from beyond it."""
+    started). Newton steps on a concave gap falling past its root come back from beyond it, and
+    end below their tangent's aim by at most half the curvature's bound times the step squared:
+    a step whose bound is well inside the band is taken without evaluating the gap there
+    (tests/physics/test_flight.py checks every hop against the exact gap)."""
     curve = g + omega * omega * ry  # the gap's curvature now, less sign
     if f <= tol and fp > 0.0 and curve > 0.0:
         # leaving the table: back at about 2 fp / curve, closer than the bound's safe step
         # (fig09: 2.75 -> 2.0 gap evaluations a hop); Newton steps go on from either side
         s = 2.0 * fp / curve
-    for _ in range(HOP_NEWTON):
+    # |the gap's curvature| <= g + omega^2 |r|, and |r| <= |rx| + |ry|
+    m2 = g + omega * omega * (abs(rx) + abs(ry))
+    for i in range(HOP_NEWTON):
         if not (s > 0.0 and s <= s_max):  # the series hold up to s_max
             return 0.0
         gap, rate = hop_gap(f, fp, rx, ry, omega, g, s)
@@ -319,7 +351,13 @@ def hop_step(f, fp, rx, ry, omega, g, tol, s, s_max):
             return s
         if not rate < 0.0:
             return 0.0
-        s += (HOP_AIM * tol - gap) / rate
+        ds = (HOP_AIM * tol - gap) / rate
+        s += ds
+        # The concave gap ends this Newton step below its tangent's HOP_AIM tol by at most
+        # m2 ds^2 / 2: well inside the band, it needs no evaluation to be accepted (fig09: 1.98
+        # evaluations a hop). Not on the last pass, which returns 0 as before.
+        if 0.5 * m2 * ds * ds <= HOP_SURE * HOP_BAND * tol and s > 0.0 and s <= s_max and i < HOP_NEWTON - 1:
+            return s
     return 0.0
 
 
@@ -401,7 +439,7 @@ def _table_gap(fpar, k, cos_phi, sin_phi, h):
 
 @numba.njit(cache=True)
 def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, phi0, vx0, vy0, omega,
-                known_phi, known_cos, known_sin):
+                known_phi, known_cos, known_sin, anchor_phi, anchor_cos, anchor_sin):
     """Drag-free contact search from the state (x0, y0, phi0, vx0, vy0, omega): the steps of
     :func:`_scan` from the closed-form flight; a fair die of NEAR_MIN_SIDES or more without
     walls also takes each corner's tighter curvature bound (:func:`_corner_motion`, ``turn``).
@@ -419,7 +457,8 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     ``known_cos`` and ``known_sin`` are the cosine and sine of the angle ``known_phi`` (NaN:
     none), taken instead of computing them again when phi is that angle: a flight that starts
     at an impact starts at the angle where the search that found it stopped (issue 33: a
-    20-sided roll has about 100 flights).
+    20-sided roll has about 100 flights). Other angles' cosine and sine come from
+    :func:`turned_trig` and the anchor ``anchor_phi`` (NaN: none).
 
     Returns
     -------
@@ -432,6 +471,8 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
     trig_phi, cos_phi, sin_phi : float
         The cosine and sine of trig_phi, the last angle whose cosine and sine were computed
         (or known_phi and the known values).
+    anchor_phi, anchor_cos, anchor_sin : float
+        The anchor for the next search.
     """
     g = fpar[FP_G]
     half_width = fpar[FP_WALL]
@@ -465,24 +506,27 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
             h -= arc  # rounded corners: arc centres against the surface moved by r
             if not trig:
                 if phi != trig_phi:
-                    cphi = math.cos(phi)
-                    sphi = math.sin(phi)
+                    cphi, sphi, anchor_phi, anchor_cos, anchor_sin = turned_trig(phi, anchor_phi, anchor_cos, anchor_sin)
                     trig_phi = phi
                 trig = True
             first = 0
             count = n
+            lowest_first = 0  # the lowest corner visited first (a contact is most often there)
             if few_near and surf == SURF_TABLE:
                 # corner k of a fair die is at phi + 2 pi k / n: the lowest is the nearest to -pi/2
                 first = int(math.floor((-0.5 * math.pi - phi) * per_rad + 0.5)) % n - NEAR_CORNERS
                 first += n if first < 0 else 0
                 count = 2 * NEAR_CORNERS + 1
+                lowest_first = NEAR_CORNERS
             step_in = step
             while True:
                 step = step_in
                 second = math.inf  # the second shortest corner step, and the corner of the shortest
                 limit = -1
                 for j in range(count):
-                    k = first + j
+                    # the order changes no result: the step and the second are the two shortest
+                    # corner steps (a tie leaves step == second: no hop), the contact by its rule
+                    k = first + j + (lowest_first if j < count - lowest_first else lowest_first - count)
                     k -= n if k >= n else 0
                     f, fp, m2, m2_turn = _corner_motion(fpar, k, cphi, sphi, h, hv, nx, ny, omega, accel, NEAR_TURN)
                     if f <= tol and fp < -contact_speed:
@@ -492,7 +536,9 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                             best_corner = k
                             best_rate = fp
                     elif few_near:
-                        step, second, limit = _near_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step, second, limit, k)
+                        if best_corner < 0:  # with a contact found the step is not used
+                            step, second, limit = _near_step(f, fp, m2, m2_turn, tol, min_step, turn_time, step, second,
+                                                             limit, k)
                     else:
                         step = min(step, _corner_step(f, fp, m2, tol, min_step))
                 if hop and best_corner < 0:
@@ -514,6 +560,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
                     break
                 first = 0
                 count = n
+                lowest_first = 0
         if best_corner >= 0:
             hit_corner = best_corner
             result = tau
@@ -527,7 +574,7 @@ def search_free(fpar, n, n_surf, tau_max, tol, min_step, contact_speed, x0, y0, 
         y = y0 + vy0 * tau - 0.5 * g * tau * tau
         phi = phi0 + omega * tau
         vy = vy0 - g * tau
-    return result, hit_surf, hit_corner, x, y, phi, vy, trig_phi, cphi, sphi
+    return result, hit_surf, hit_corner, x, y, phi, vy, trig_phi, cphi, sphi, anchor_phi, anchor_cos, anchor_sin
 
 
 @numba.njit(cache=True)
@@ -565,9 +612,9 @@ def next_contact(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, out
     c = fpar[FP_DRAG]
     n_surf = 1 if math.isinf(fpar[FP_WALL]) else 3
     if c == 0.0:
-        tau, surf, corner, out[0], out[1], out[2], out[4], _, _, _ = search_free(
+        tau, surf, corner, out[0], out[1], out[2], out[4], _, _, _, _, _, _ = search_free(
             fpar, n, n_surf, tau_max, tol, min_step, contact_speed, s0[0], s0[1], s0[2], s0[3], s0[4], s0[5],
-            math.nan, 0.0, 0.0
+            math.nan, 0.0, 0.0, math.nan, 0.0, 0.0
         )
         out[3] = s0[3]
         out[5] = s0[5]

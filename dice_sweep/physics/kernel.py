@@ -40,6 +40,7 @@ from dice_sweep.physics.impact import (
     stop_corner_normal,
 )
 from dice_sweep.physics.params import (
+    CORNER_STRIDE,
     FP_COM_X,
     FP_CORNERS,
     FP_COM_Y,
@@ -185,8 +186,9 @@ def _record(rec, nrec, t, kind, s, corner, px, chi, energy, event):
 
 @numba.njit(cache=True)
 def _flat_table(ipar):
-    """An empty :func:`_flat_pair` table for the die of ipar: float64[n, 2] of NaN."""
-    return np.full((ipar[IP_N], 2), math.nan)
+    """An empty :func:`_flat_pair` table for the die of ipar: float64[n, 3] of NaN (the third
+    column: the corner's body angle, for :func:`_set_pivot_state`)."""
+    return np.full((ipar[IP_N], 3), math.nan)
 
 
 @numba.njit(cache=True)
@@ -195,26 +197,36 @@ def _flat_pair(fpar, n, corner, flats):
     from ``flats``: 20-sided rolls spent 119 of the 359 ns of a pivot on it (issue 33)."""
     if math.isnan(flats[corner, 0]):
         flats[corner, 0], flats[corner, 1] = flat_angles(fpar, n, corner)
+        flats[corner, 2] = corner_geometry(fpar, corner)[1]  # an atan2 a pivot (issue 33)
     return flats[corner, 0], flats[corner, 1]
 
 
 @numba.njit(cache=True)
-def _set_pivot_state(s, fpar, px, chi, omega, corner):
+def _set_pivot_state(s, fpar, px, chi, omega, corner, angle):
     """Full COM state of a die pivoting on ``corner`` at (px, 0), keeping phi unwrapped; with
     rounded corners px is the arc centre's x (the centre at height r) and the die rolls
-    (the contact point at rest)."""
-    rho, angle = corner_geometry(fpar, corner)
+    (the contact point at rest). ``angle``: the corner's body angle (``corner_geometry``; the
+    roll loop keeps it in its :func:`_flat_pair` table). Returns the cosine and sine of the
+    body angle s[2], from chi's and the corner's direction (within a few ulp of libm's; issue
+    33: the impact that ends a 20-sided die's pivot, its outcome check and what follows took
+    them again)."""
+    base = FP_CORNERS + CORNER_STRIDE * corner
+    rho = fpar[base]
     arc = fpar[FP_CORNER_RADIUS]
-    s[0] = px + rho * math.cos(chi)
-    s[1] = rho * math.sin(chi)
+    c = math.cos(chi)
+    sn = math.sin(chi)
+    s[0] = px + rho * c
+    s[1] = rho * sn
     phi = chi - angle - math.pi  # chi is the body angle of (COM - corner) turned by phi
     s[2] = phi + 2.0 * math.pi * round((s[2] - phi) / (2.0 * math.pi))
-    s[3] = -omega * rho * math.sin(chi)
-    s[4] = omega * rho * math.cos(chi)
+    s[3] = -omega * rho * sn
+    s[4] = omega * rho * c
     s[5] = omega
     if arc != 0.0:
         s[1] += arc
         s[3] -= omega * arc
+    # cos and sin of chi - angle - pi, (cos angle, sin angle) the corner's direction
+    return -(c * fpar[base + 1] + sn * fpar[base + 2]), fpar[base + 2] * c - fpar[base + 1] * sn
 
 
 @numba.njit(inline="always")  # inlined: a call (four array arguments) per impact costs refcounts
@@ -329,9 +341,9 @@ def _corner_resting(s, fpar, corner, c, sn, speed):
 
 
 @numba.njit(cache=True)
-def _flat_side(s, fpar, n, speed, near):
+def _flat_side(s, fpar, n, speed, near, cos_phi, sin_phi):
     """The side the die lies flat on (both its corners on the table, neither moving in or out
-    faster than ``speed``), or -1.
+    faster than ``speed``), or -1. ``cos_phi``, ``sin_phi``: those of s[2] if known, else NaN.
 
     ``near``: a corner touching the table (within the gap tolerance), or -1 (unknown). No three
     corners of a regular polygon (arc centres too, loaded or not) lie within a tolerance of one
@@ -340,8 +352,10 @@ def _flat_side(s, fpar, n, speed, near):
     corners, and only it and its two neighbours need counting: the same answer (n = 20 counted
     20 corners on every table impact, issue 33).
     """
-    c = math.cos(s[2])
-    sn = math.sin(s[2])
+    c, sn = cos_phi, sin_phi
+    if c != c:
+        c = math.cos(s[2])
+        sn = math.sin(s[2])
     # Both corners of the side must be resting; after a bounce only the corner that hit is,
     # if any. Counting the resting corners first skips side_below (a float modulo) on almost
     # every call, and changes no answer.
@@ -619,6 +633,11 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
     trig_phi = math.nan
     trig_cos = 0.0
     trig_sin = 0.0
+    # the search's last libm cosine and sine, or a pivot's end's (flight.turned_trig): most
+    # others come from them
+    anchor_phi = math.nan
+    anchor_cos = 0.0
+    anchor_sin = 0.0
     # a fair many-sided die with the table alone: at a flight's contact only the contact corner's
     # neighbours can be near the table (issue 33: second_contact looked at all 20 on every impact)
     far_gap = _far_gap(fpar, n, tol) if n >= NEAR_MIN_SIDES and not loaded and n_surf == 1 else -1.0
@@ -627,9 +646,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
         if not pivoting:
             if drag_free:
                 # next_contact's own drag-free search, called with the state as scalars
-                tau, surf, corner_hit, x, y, phi, vy, trig_phi, trig_cos, trig_sin = search_free(
+                (tau, surf, corner_hit, x, y, phi, vy, trig_phi, trig_cos, trig_sin,
+                 anchor_phi, anchor_cos, anchor_sin) = search_free(
                     fpar, n, n_surf, t_max - t, tol, min_step, contact_speed, s[0], s[1], s[2], s[3], s[4], s[5],
-                    trig_phi, trig_cos, trig_sin
+                    trig_phi, trig_cos, trig_sin, anchor_phi, anchor_cos, anchor_sin
                 )
             else:
                 tau = next_contact(s, fpar, ipar, t_max - t, tol, min_step, contact_speed, hit, after)
@@ -664,7 +684,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
             if nrec > 0:
                 rec[nrec - 1, REC_CHI_END] = out[0]
             t += out[2]
-            _set_pivot_state(s, fpar, px + out[3], out[0], out[1], corner)
+            trig_cos, trig_sin = _set_pivot_state(s, fpar, px + out[3], out[0], out[1], corner, flats[corner, 2])
+            trig_phi = s[2]
+            # and the anchor of the next search's series: a pivot turns a 20-sided die by 0.3 rad
+            anchor_phi, anchor_cos, anchor_sin = trig_phi, trig_cos, trig_sin
             s[3] += out[4]  # a sliding corner carries its slip velocity into what follows
             pivoting = False
             if kind == PIVOT_DECIDED:
@@ -694,7 +717,10 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
             # u_n is the corner's normal velocity after the impact, the one _corner_resting
             # tests: a contact corner leaving faster is not resting, and no side lies flat
             # without it (_flat_side). Most impacts of a many-sided die end so.
-            flat = _flat_side(s, fpar, n, stick_speed, corner if corner == contact else np.int64(-1))
+            # the search's cosine and sine if the impact left the angle theirs (28 calls a 20-sided roll)
+            known = s[2] == trig_phi
+            flat = _flat_side(s, fpar, n, stick_speed, corner if corner == contact else np.int64(-1),
+                              trig_cos if known else math.nan, trig_sin)
         if flat >= 0:
             return _lie_flat(s, fpar, n, flat, rec, nrec, t, t_max, keep_going, decided, t_decided)
         tip = _held_flat(s, fpar, n, stick_speed) if surf == SURF_TABLE and loaded else -1
@@ -961,7 +987,8 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             slip = 0.0 if math.isinf(fpar[FP_MU]) else start[3] - start[5] * ly
             pivot_ode(fpar, ipar[IP_N], corner, rec[seg, REC_PX], rec[seg, REC_CHI], start[5], slip, tau, False, pivot_out, pivot_hit)
             com[:] = start
-            _set_pivot_state(com, fpar, rec[seg, REC_PX] + pivot_out[3], pivot_out[0], pivot_out[1], corner)
+            _set_pivot_state(com, fpar, rec[seg, REC_PX] + pivot_out[3], pivot_out[0], pivot_out[1], corner,
+                             corner_geometry(fpar, corner)[1])
             com[3] += pivot_out[4]
         elif rec[seg, REC_KIND] == SEG_PIVOT:
             corner = int(rec[seg, REC_CORNER])
@@ -973,7 +1000,7 @@ def sample_records(fpar, ipar, rec, n_rec, times, out):
             w2 = pivot_omega_squared(e, math.sin(chi), rho, g, alpha)
             omega = math.copysign(math.sqrt(max(w2, 0.0)), start[5] if start[5] != 0.0 else -math.cos(chi0))
             com[:] = start
-            _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner)
+            _set_pivot_state(com, fpar, rec[seg, REC_PX], chi, omega, corner, corner_geometry(fpar, corner)[1])
         elif rec[seg, REC_KIND] == SEG_LADDER:
             ladder_at(fpar, ipar[IP_N], int(rec[seg, REC_CORNER]), int(rec[seg, REC_PX]), rec[seg, REC_CHI], start[2], start[5], tau, com)
         elif rec[seg, REC_KIND] == SEG_SLIDE:

@@ -41,6 +41,7 @@ from dice_sweep.physics.flight import (
     next_contact,
     safe_step,
     surface_frame,
+    turned_trig,
 )
 from dice_sweep.physics.kernel import CONTACT_SPEED, GAP_TOL, MIN_STEP, REC_T
 from dice_sweep.physics.params import (
@@ -91,21 +92,49 @@ def reference_turn_step(tight, wide, turn, omega):
     return tight if tight <= turn_time else max(turn_time, wide)
 
 
+TURN_COS = (1.0 / 40320.0, -1.0 / 720.0, 1.0 / 24.0, -0.5)  # cos x - 1 = x^2 (-1/2 + x^2 (1/24 + ...))
+TURN_SIN = (1.0 / 362880.0, -1.0 / 5040.0, 1.0 / 120.0, -1.0 / 6.0)
+
+
 @numba.njit
-def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, hit, turn=-1.0):
+def reference_trig(phi, anchor):
+    """(cos phi, sin phi) as the search takes them: by the angle-addition identity from
+    ``anchor`` = (angle, its libm cosine and sine) within HOP_TURN of it (Taylor series of the
+    turn, Horner's rule), else from libm, which then becomes the anchor (updated in place)."""
+    d = phi - anchor[0]
+    if abs(d) <= HOP_TURN:
+        u = d * d
+        pc = 0.0
+        ps = 0.0
+        for i in range(4):
+            pc = TURN_COS[i] + u * pc
+            ps = TURN_SIN[i] + u * ps
+        cos_m1 = u * pc
+        sin_d = d + d * u * ps
+        return anchor[1] + (anchor[1] * cos_m1 - anchor[2] * sin_d), anchor[2] + (anchor[2] * cos_m1 + anchor[1] * sin_d)
+    anchor[0] = phi
+    anchor[1] = math.cos(phi)
+    anchor[2] = math.sin(phi)
+    return anchor[1], anchor[2]
+
+
+@numba.njit
+def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, contact_speed, hit, turn=-1.0, anchor=None):
     """Safe step (s) from state s, or -1 with ``hit`` set when a corner touches now: every
     surface, every corner, the quadratic bound of the module's docstring. With ``turn`` >= 0
     (rad; a fair die of NEAR_MIN_SIDES or more without walls) each corner also has the bound
     of its curvature over a turn of at most ``turn``, accel + omega^2 min(rho, n . r +
     |n . r_perp| turn + rho turn^2 / 2), safe for steps up to turn / |omega|; beyond, the wider
     bound's step is taken if longer; the corner whose step is the shortest, alone, may then
-    take its hop_step instead, if longer (no further than the next corner's step)."""
+    take its hop_step instead, if longer (no further than the next corner's step).
+    ``anchor``: the cosine and sine by :func:`reference_trig` (None: libm's), taken only
+    when a surface is within the die's reach."""
     half_width = fpar[FP_WALL]
     rho_max = fpar[FP_RHO_MAX]
     arc = fpar[FP_CORNER_RADIUS]
     omega = s[5]
-    cphi = math.cos(s[2])
-    sphi = math.sin(s[2])
+    cphi = math.nan
+    sphi = math.nan
     step = math.inf
     best_corner = -1
     best_rate = 0.0
@@ -118,6 +147,12 @@ def reference_scan(s, fpar, n, n_surf, accel_table, accel_wall, tol, min_step, c
             step = min(step, safe_step(h - rho_max, hv, accel))
             continue
         h -= arc
+        if cphi != cphi:
+            if anchor is None:
+                cphi = math.cos(s[2])
+                sphi = math.sin(s[2])
+            else:
+                cphi, sphi = reference_trig(s[2], anchor)
         corner_steps = np.full(n, math.inf)
         for k in range(n):
             base = FP_CORNERS + CORNER_STRIDE * k
@@ -170,8 +205,9 @@ def reference_search(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit,
     turn = NEAR_TURN if n >= NEAR_MIN_SIDES and fair and n_surf == 1 else -1.0
     out[:] = s0
     tau = 0.0
+    anchor = np.array([math.nan, 0.0, 0.0])
     for _ in range(MAX_SEARCH_STEPS):
-        step = reference_scan(out, fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit, turn)
+        step = reference_scan(out, fpar, n, n_surf, g, 0.0, tol, min_step, contact_speed, hit, turn, anchor)
         if step < 0.0:
             return tau
         if tau + step > tau_max:
@@ -239,8 +275,9 @@ def counted_search(s0, fpar, ipar, tau_max, tol, min_step, contact_speed, hit, o
     g = fpar[FP_G]
     out[:] = s0
     tau = 0.0
+    anchor = np.array([math.nan, 0.0, 0.0])
     for steps in range(1, MAX_SEARCH_STEPS + 1):
-        step = reference_scan(out, fpar, n, 1, g, 0.0, tol, min_step, contact_speed, hit)
+        step = reference_scan(out, fpar, n, 1, g, 0.0, tol, min_step, contact_speed, hit, -1.0, anchor)
         if step < 0.0:
             return tau, steps
         if tau + step > tau_max:
@@ -502,6 +539,29 @@ def test_hop_step_refuses_what_it_cannot_show():
     assert hop_step(h + ry + 1e-6, rising + omega * rx, rx, ry, omega, G, tol, 1e-5, s_max) == 0.0
     # the same corner from a step near its return (about 2.46 ms) is found
     assert hop_step(h + ry + 1e-6, rising + omega * rx, rx, ry, omega, G, tol, 2.4e-3, s_max) > 2.4e-3
+
+
+def test_turned_trig_is_within_two_ulp_of_the_cosine_and_sine_of_the_angle(rng):
+    """The search's cosine and sine of an angle within HOP_TURN of its anchor (from the anchor's
+    libm values by the angle-addition identity) against numpy's long double cosine and sine of
+    that angle; the anchor is kept. Beyond HOP_TURN (control): libm's own values, and the angle
+    becomes the anchor."""
+    anchors = np.concatenate([rng.uniform(-300.0, 300.0, 3000), rng.uniform(-0.1, 0.1, 1000)])
+    turns = rng.uniform(-HOP_TURN, HOP_TURN, len(anchors))
+    turns[:8] = [0.9999 * HOP_TURN, -0.9999 * HOP_TURN, 1e-300, -1e-12, 0.0, 3e-4, -2e-3, 0.5 * HOP_TURN]
+    worst = 0.0
+    for anchor, turn in zip(anchors, turns):
+        phi = anchor + turn
+        c, sn, a_phi, a_cos, a_sin = turned_trig(phi, anchor, math.cos(anchor), math.sin(anchor))
+        assert (a_phi, a_cos, a_sin) == (anchor, math.cos(anchor), math.sin(anchor))
+        exact = np.longdouble(phi)
+        worst = max(worst, float(abs(c - np.cos(exact))), float(abs(sn - np.sin(exact))))
+    assert worst <= 2.0 * np.spacing(1.0)
+    for anchor, turn in [(1.0, 1.01 * HOP_TURN), (-40.0, -0.3), (2.0, math.nan)]:
+        phi = anchor + turn if turn == turn else 2.5
+        c, sn, a_phi, a_cos, a_sin = turned_trig(phi, anchor if turn == turn else math.nan, 0.3, 0.4)
+        assert (c, sn) == (math.cos(phi), math.sin(phi))
+        assert (a_phi, a_cos, a_sin) == (phi, c, sn)
 
 
 @pytest.mark.parametrize("sides", [12, 20])
