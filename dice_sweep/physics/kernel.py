@@ -583,7 +583,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
     mass (outcome.decided_side); with ``ipar[IP_CONTINUE]`` the roll goes on to rest.
     ``rec`` receives one record per segment (layout.REC_*); ``counts`` the event tallies;
     ``after``, ``out`` and ``hit`` are scratch arrays (float64[6], float64[5], int64[2]);
-    ``flats`` (float64[n, 2], NaN where not yet known) the die's :func:`_flat_pair` table.
+    ``flats`` (float64[n, 3], NaN where not yet known) the die's :func:`_flat_pair` table.
 
     Returns (outcome, status, t_decided, t_end, n_records).
     """
@@ -717,8 +717,7 @@ def _roll_event(fpar, ipar, s, rec, counts, after, out, hit, flats):
             # u_n is the corner's normal velocity after the impact, the one _corner_resting
             # tests: a contact corner leaving faster is not resting, and no side lies flat
             # without it (_flat_side). Most impacts of a many-sided die end so.
-            # the search's cosine and sine if the impact left the angle theirs (28 calls a 20-sided roll)
-            known = s[2] == trig_phi
+            # the search's cosine and sine if the angle is theirs (an impact moves no angle; 28 calls a 20-sided roll)
             flat = _flat_side(s, fpar, n, stick_speed, corner if corner == contact else np.int64(-1),
                               trig_cos if known else math.nan, trig_sin)
         if flat >= 0:
