@@ -31,9 +31,18 @@ def files(tmp_path_factory):
     return data, config
 
 
-def test_diagnose_with_json_alone_keeps_the_contract(files, tmp_path):
-    data, config = files
-    result = invoke("diagnose", data, "--config", config, "--quiet", "--json", tmp_path / "r.json")
+@pytest.fixture(scope="module")
+def few_tracks(tmp_path_factory):
+    """Fourteen drops (ten usable tracks): the least the loop runs on, and the cheapest diagnose."""
+    few = tmp_path_factory.mktemp("few") / "few.csv"
+    write_csv(few, simulate_drops(TRUTH, 14, 6, rate=500.0, noise=(2e-4, 4e-3)))
+    return few
+
+
+def test_diagnose_with_json_alone_keeps_the_contract(files, few_tracks, tmp_path):
+    _, config = files
+    # the contract, not the verdict: on the fewest tracks (30 cost 54 s of the suite's time)
+    result = invoke("diagnose", few_tracks, "--config", config, "--quiet", "--json", tmp_path / "r.json")
     assert result.exit_code == 0, result.output
     report = json.loads((tmp_path / "r.json").read_text())
     for key in ("verdict", "effects_added", "baseline", "after", "noise_floor", "params", "angle_reading"):
@@ -47,7 +56,7 @@ def test_diagnose_with_json_alone_keeps_the_contract(files, tmp_path):
     assert not list(tmp_path.glob("*.partial"))
 
 
-def test_fit_and_markdown_with_few_tracks(files, tmp_path):
+def test_fit_and_markdown_with_few_tracks(files, few_tracks, tmp_path):
     data, config = files
     result = invoke("fit", data, "--config", config, "--json", tmp_path / "fit.json")
     assert result.exit_code == 0, result.output
@@ -55,9 +64,7 @@ def test_fit_and_markdown_with_few_tracks(files, tmp_path):
     low, high = fit["params"]["beta_normal"]["ci95"]
     assert low <= 0.4 <= high
     # ten tracks: every writer still works
-    few = tmp_path / "few.csv"
-    write_csv(few, simulate_drops(TRUTH, 14, 6, rate=500.0, noise=(2e-4, 4e-3)))
-    result = invoke("diagnose", few, "--config", config, "--quiet", "--json", tmp_path / "f.json", "--md", tmp_path / "f.md",
+    result = invoke("diagnose", few_tracks, "--config", config, "--quiet", "--json", tmp_path / "f.json", "--md", tmp_path / "f.md",
                     "--png", tmp_path / "png")
     assert result.exit_code == 0, result.output
     markdown = (tmp_path / "f.md").read_text()
