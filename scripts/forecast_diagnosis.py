@@ -48,15 +48,6 @@ def parse_law(text):
     return dict(zip(scatter_law_keys(), (float(v) for v in text.split(","))))
 
 
-def gaussian_law(law):
-    """The [scatter] keys of an estimate_spreads dict (the isotropic Gaussian law)."""
-    from dice_sweep.effects import scatter_spread_keys
-    from dice_sweep.measured.scatter import KINDS
-
-    return {**{name: (law[kind][key] or 0.0) for kind in KINDS for key, name in zip(("value", "floor"), scatter_spread_keys(kind))},
-            "power": law.get("power", {}).get("value", 1.0)}
-
-
 def law_variance(kind, u, law, speed):
     """The law's per-component variance ((m/s)^2) at approach u (m/s) of (vx, vy, sqrt(I/M) omega),
     shape included: a share tail_share of jumps tail_factor times wider, each capped at u as the
@@ -71,7 +62,7 @@ def law_variance(kind, u, law, speed):
 
 def residuals(args):
     from dice_sweep.measured.impacts import find_impacts
-    from dice_sweep.measured.scatter import KINDS, ImpactResidual, estimate_shape, estimate_spreads, impact_residuals, shape_law
+    from dice_sweep.measured.scatter import KINDS, ImpactResidual, estimate_shape, estimate_spreads, impact_residuals, shape_law, spreads_law
 
     cfg, source, select_set, table, sigma = context(args)
     speed = math.sqrt(source.params.get("g", cfg.world.g) * cfg.die.circumradius)
@@ -92,7 +83,7 @@ def residuals(args):
     spreads = estimate_spreads(rows, speed=speed, seed=source.seed, power=args.power)
     # the law the forecast uses: the mixture's, unless --power holds the Gaussian law's power
     shape = None if args.power is not None else estimate_shape(rows, speed=speed, seed=source.seed)
-    law = shape_law(shape) if shape else gaussian_law(spreads)
+    law = shape_law(shape) if shape else spreads_law(spreads)
     OUT.mkdir(parents=True, exist_ok=True)
     cache.write_text(json.dumps({"rows": [dataclasses.asdict(r) for r in rows], "law": spreads, "scatter": law, "found": found}, default=float))
     if args.law:  # another law to test against the same residuals
@@ -150,11 +141,12 @@ def flights(args):
 
 def calibration(args):
     from dice_sweep.measured import forecast as fc
+    from dice_sweep.measured.scatter import spreads_law
 
     cfg, source, select_set, table, sigma = context(args)
     if source.scatter is None:  # the law the residuals run estimated
         saved = json.loads((OUT / f"selection_residuals_{Path(args.fit).stem}.json").read_text())
-        source = dataclasses.replace(source, scatter=saved.get("scatter") or gaussian_law(saved["law"]))
+        source = dataclasses.replace(source, scatter=saved.get("scatter") or spreads_law(saved["law"]))
     if args.law:
         source = dataclasses.replace(source, scatter=parse_law(args.law))
     source = dataclasses.replace(source, scatter=fc.scaled_scatter(source.scatter, args.scale))

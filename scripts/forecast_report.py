@@ -84,11 +84,11 @@ def with_scatter(args, fit):
     if data.get("scatter") and data.get("scatter_scale"):
         return Path(fit)
     from dice_sweep.config import load_config
-    from dice_sweep.effects import SCATTER_KINDS, SCATTER_SHAPE, scatter_spread_keys
+    from dice_sweep.effects import SCATTER_KINDS, SCATTER_SHAPE
     from dice_sweep.measured import forecast as fc
     from dice_sweep.measured.noise import tracking_noise
     from dice_sweep.measured.report import jsonable
-    from dice_sweep.measured.scatter import fitted_scatter, scatter_section, shape_law
+    from dice_sweep.measured.scatter import fitted_scatter, scatter_section, shape_law, spreads_law
     from dice_sweep.measured.tracks import load_tracks
 
     def say(line):
@@ -107,9 +107,7 @@ def with_scatter(args, fit):
     bounces = [k for k, count in enumerate(fc.flight_counts(prepared)) if count >= fc.MIN_BOUNCE_TRACKS]
     law = data["scatter"]
     residual_power = law["power"]["value"]
-    forms = [("gaussian", power, {**{name: law["power"]["by_power"][f"{power:g}"][kind][key] for kind in SCATTER_KINDS
-                                     for key, name in zip(("value", "floor"), scatter_spread_keys(kind))}, "power": power})
-             for power in sorted({residual_power, *FORM_POWERS})]
+    forms = [("gaussian", power, spreads_law(law["power"]["by_power"][f"{power:g}"], power)) for power in sorted({residual_power, *FORM_POWERS})]
     if law.get("shape"):  # the heavy-tailed, anisotropic law at its own power (dice_sweep.measured.scatter.estimate_shape)
         forms.append(("mixture", law["shape"]["power"], shape_law(law["shape"])))
     candidates = []

@@ -50,7 +50,7 @@ from dice_sweep.physics.layout import COUNT_COLUMNS, EVENT_IMPACT, REC_EVENT, RE
 from dice_sweep.physics.params import FP_INERTIA, FP_TMAX, IP_CONTINUE, pack_params
 from dice_sweep.physics.scatter import FLAT_TILT
 
-__all__ = ["ImpactResidual", "impact_residuals", "estimate_spreads", "estimate_shape", "shape_law", "excess_kurtosis", "scatter_section",
+__all__ = ["ImpactResidual", "impact_residuals", "estimate_spreads", "estimate_shape", "spreads_law", "shape_law", "excess_kurtosis", "scatter_section",
            "fitted_scatter", "jump_sd", "KINDS", "POWERS", "SHAPE_POWERS"]
 
 BACKOFF = 2e-3  # s (true time) before the fitted contact the kernel starts: clear of the table
@@ -488,6 +488,14 @@ def estimate_shape(residuals, *, speed, seed=0, draws=SHAPE_BOOTSTRAP):
         out[kind] = {"floor": entry(theta[2 * j], boot[:, 2 * j], sqrt=True), "value": entry(theta[2 * j + 1], boot[:, 2 * j + 1], sqrt=True)}
     out["gaussian_log_likelihood"] = null[1]  # the same power, w = 0, s = 1: the law before the shape
     return out
+
+
+def spreads_law(spreads, power=None):
+    """The [scatter] keys (spreads, floors and power) of an :func:`estimate_spreads` dict, or of
+    one of its ``power["by_power"]`` entries with that ``power``: the isotropic Gaussian law (a
+    kind without impacts, absent or None: 0)."""
+    law = {name: spreads.get(kind, {}).get(key) or 0.0 for kind in KINDS for key, name in zip(("value", "floor"), registry.scatter_spread_keys(kind))}
+    return {**law, "power": spreads.get("power", {}).get("value", 1.0) if power is None else power}
 
 
 def shape_law(shape):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from dice_sweep.config import parse_config
-from dice_sweep.measured.scatter import ImpactResidual, estimate_shape, estimate_spreads, excess_kurtosis, impact_residuals, scatter_section
+from dice_sweep.measured.scatter import ImpactResidual, estimate_shape, estimate_spreads, excess_kurtosis, impact_residuals, scatter_section, spreads_law
 from dice_sweep.measured.tracks import load_tracks
 from tests.measured.independent import Truth, simulate_drops, write_csv
 
@@ -168,6 +168,9 @@ def test_the_law_of_an_exact_line_by_hand():
     cfg = parse_config(scatter_section(free))
     assert cfg.scatter.corner == pytest.approx(0.1) and cfg.scatter.corner_floor == pytest.approx(0.04)
     assert cfg.scatter.flat == 0.0 and cfg.scatter.flat_floor == 0.0 and cfg.scatter.power == 1.0
+    law = spreads_law(free)  # the same law as [scatter] keys, as the forecast scripts read it
+    assert law == pytest.approx({"corner": 0.1, "corner_floor": 0.04, "flat": 0.0, "flat_floor": 0.0, "power": 1.0})
+    assert spreads_law(free["power"]["by_power"]["1"], 1.0) == pytest.approx(law)  # one power's entry, that power
 
 
 def test_a_power_read_from_the_residuals_by_hand():
