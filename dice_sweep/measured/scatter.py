@@ -514,12 +514,7 @@ def jump_sd(law, kind, u):
 def scatter_section(spreads):
     """The ``[scatter]`` TOML of estimated spreads (a kind without impacts: 0), the power and
     the shape keys the law has (tail_share, tail_factor, spin: {value, ...} entries)."""
-    lines = ["[scatter]"]
-    for kind in KINDS:
-        for key, name in zip(("value", "floor"), registry.scatter_spread_keys(kind)):
-            value = spreads[kind][key]
-            lines.append(f"{name} = {value if value is not None else 0.0!r}")
-    lines.append(f"power = {float(spreads.get('power', {}).get('value', 1.0))!r}")
+    lines = ["[scatter]"] + [f"{name} = {float(value)!r}" for name, value in spreads_law(spreads).items()]
     lines += [f"{name} = {float(spreads[name]['value'])!r}" for name in registry.SCATTER_SHAPE if isinstance(spreads.get(name), dict)]
     return "\n".join(lines) + "\n"
 
