@@ -84,7 +84,7 @@ def causes(report):
 # Calibrated, not chosen to pass: the loop's intervals cover about 90 % (friction 43/48,
 # scripts/coverage_measured.py; the track bootstrap is about 1.3 times too narrow: docs/dev/
 # measured_intervals.md), and this file checks some 25 intervals, so the plain 95 % interval
-# would fail a run by chance about two times in three. 1.3 x 3.09 / 1.96 = 2.05: a 0.2 % miss
+# would fail a run by chance about two times in three. 1.3 x 3.09 / 1.96 = 2.05, used as 2.0: a 0.2 % miss
 # per check at the measured width, 5 % for the file. Caught: time_scale 9.0516 [9.0193,
 # 9.0680] for 9.0699 and air_drag 0.8154 [0.8001, 0.8365] for 0.8 (two effects at once),
 # the same to 1e-10 at fac92d9 and d3de25b; the intervals' coverage itself is measured by
